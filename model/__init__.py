@@ -1,0 +1,1 @@
+"""Contact-condition-guided diffusion model (issue 6: not yet built)."""

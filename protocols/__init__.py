@@ -1,0 +1,1 @@
+"""Named trajectories expanded into steps (issue 4: not yet built)."""

@@ -1,0 +1,291 @@
+"""Rig configuration: a TOML file naming each device, validated at load.
+
+Every error names the file, the key (``axes.z.travel``) and what was allowed.
+Positions are in the axis unit (mm or deg); ``position = native * scale + offset``.
+"""
+
+from __future__ import annotations
+
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from rig.errors import ConfigError
+
+AXIS_NAMES = ("x", "y", "z", "theta")
+AXIS_DRIVERS = ("zaber", "pr_drive")
+GAUGE_DRIVERS = ("ft300", "m8128")
+CAMERA_DRIVERS = ("v4l2", "folder", "video", "sim")
+
+
+@dataclass(frozen=True)
+class AxisConfig:
+    name: str
+    driver: str
+    port: str
+    baudrate: int
+    device: int  # Zaber device number, or Modbus device id
+    unit: str  # "mm" or "deg"
+    travel: tuple[float, float]  # soft limits, unit
+    max_speed: float  # unit/s
+    jog_speed: float  # unit/s, default for jogs
+    offset: float = 0.0  # unit at native zero
+    scale: float | None = None  # zaber: unit per microstep (negative flips direction)
+    axis_number: int = 1  # zaber: axis of a multi-axis controller
+    pulses_per_rev: int | None = None  # pr_drive
+    travel_per_rev: float | None = None  # pr_drive: unit per motor revolution
+    timeout_s: float = 0.5
+    retries: int = 2
+    requires_home: bool = True
+
+
+@dataclass(frozen=True)
+class GaugeConfig:
+    driver: str
+    port: str
+    baudrate: int
+    device_id: int = 9  # ft300 Modbus id
+    mode: str = "stream"  # stream | poll
+    rate_hz: int = 100  # m8128 sampling rate
+    timeout_s: float = 0.5
+    retries: int = 2
+
+
+@dataclass(frozen=True)
+class CameraConfig:
+    driver: str
+    device: str  # /dev/video0, a folder of images, a video file; ignored for sim
+    width: int = 640
+    height: int = 480
+    fps: float = 25.0
+    exposure: float | None = None
+    white_balance_K: float | None = None
+    discard_frames: int = 5
+
+
+@dataclass(frozen=True)
+class SafetyConfig:
+    max_force_N: tuple[float, float, float]  # |Fx|, |Fy|, |Fz| limits
+    max_torque_Nmm: tuple[float, float, float]  # |Mx|, |My|, |Mz| limits
+    poll_s: float = 0.02  # how often a moving rig checks the wrench
+
+
+@dataclass(frozen=True)
+class PendantConfig:
+    vendor_id: int | None = None
+    product_id: int | None = None
+    deadband: float = 0.15
+
+
+@dataclass(frozen=True)
+class RigConfig:
+    path: str
+    name: str
+    axes: dict[str, AxisConfig] = field(default_factory=dict)
+    gauge: GaugeConfig | None = None
+    camera: CameraConfig | None = None
+    safety: SafetyConfig | None = None
+    pendant: PendantConfig | None = None
+
+
+class _Table:
+    """Typed access to one TOML table, with errors naming file and key."""
+
+    def __init__(self, path: str, prefix: str, data: Any):
+        if not isinstance(data, dict):
+            raise ConfigError(path, prefix, f"must be a table, got {type(data).__name__}")
+        self.path, self.prefix, self.data = path, prefix, data
+        self.used: set[str] = set()
+
+    def key(self, name: str) -> str:
+        return f"{self.prefix}.{name}" if self.prefix else name
+
+    def error(self, name: str, message: str) -> ConfigError:
+        return ConfigError(self.path, self.key(name), message)
+
+    def get(self, name: str, kind: type, default: Any = ..., *, choices=None, low=None, high=None,
+            positive: bool = False):
+        self.used.add(name)
+        if name not in self.data:
+            if default is ...:
+                raise self.error(name, "is required" + (f" (one of {', '.join(map(repr, choices))})" if choices else ""))
+            return default
+        value = self.data[name]
+        if kind is float and isinstance(value, int) and not isinstance(value, bool):
+            value = float(value)
+        if not isinstance(value, kind) or (kind is int and isinstance(value, bool)):
+            raise self.error(name, f"must be {kind.__name__}, got {value!r}")
+        if choices is not None and value not in choices:
+            raise self.error(name, f"must be one of {', '.join(map(repr, choices))}, got {value!r}")
+        if positive and value <= 0:
+            raise self.error(name, f"must be > 0, got {value!r}")
+        if (low is not None and value < low) or (high is not None and value > high):
+            raise self.error(name, f"must be in [{low}, {high}], got {value!r}")
+        return value
+
+    def vector(self, name: str, n: int, default: Any = ..., *, positive: bool = False) -> tuple[float, ...]:
+        self.used.add(name)
+        if name not in self.data:
+            if default is ...:
+                raise self.error(name, f"is required (a list of {n} numbers)")
+            return default
+        value = self.data[name]
+        if not isinstance(value, list) or len(value) != n or not all(
+                isinstance(v, (int, float)) and not isinstance(v, bool) for v in value):
+            raise self.error(name, f"must be a list of {n} numbers, got {value!r}")
+        if positive and any(v <= 0 for v in value):
+            raise self.error(name, f"every value must be > 0, got {value!r}")
+        return tuple(float(v) for v in value)
+
+    def done(self) -> None:
+        unknown = sorted(set(self.data) - self.used)
+        if unknown:
+            raise self.error(unknown[0], f"unknown key; expected one of {', '.join(sorted(self.used))}")
+
+
+def _axis(path: str, name: str, data: Any) -> AxisConfig:
+    t = _Table(path, f"axes.{name}", data)
+    driver = t.get("driver", str, choices=AXIS_DRIVERS)
+    unit = t.get("unit", str, "deg" if name == "theta" else "mm", choices=("mm", "deg"))
+    travel = t.vector("travel", 2)
+    if travel[0] >= travel[1]:
+        raise t.error("travel", f"must be [low, high] with low < high, got {list(travel)}")
+    max_speed = t.get("max_speed", float, positive=True)
+    jog_speed = t.get("jog_speed", float, min(1.0, max_speed), positive=True)
+    if jog_speed > max_speed:
+        raise t.error("jog_speed", f"must not exceed max_speed ({max_speed}), got {jog_speed}")
+    cfg = dict(
+        name=name, driver=driver, unit=unit, travel=travel, max_speed=max_speed, jog_speed=jog_speed,
+        port=t.get("port", str),
+        baudrate=t.get("baudrate", int, 115200 if driver == "zaber" else 38400, positive=True),
+        device=t.get("device", int, 1, low=0, high=247),
+        offset=t.get("offset", float, 0.0),
+        timeout_s=t.get("timeout_s", float, 0.5, positive=True),
+        retries=t.get("retries", int, 2, low=0, high=10),
+        requires_home=t.get("requires_home", bool, True),
+    )
+    if driver == "zaber":
+        scale = t.get("scale", float)
+        if scale == 0:
+            raise t.error("scale", "must be non-zero (unit per microstep; negative flips the direction)")
+        cfg.update(scale=scale, axis_number=t.get("axis_number", int, 1, low=1, high=9))
+    else:
+        cfg.update(pulses_per_rev=t.get("pulses_per_rev", int, positive=True))
+        per_rev = t.get("travel_per_rev", float)
+        if per_rev == 0:
+            raise t.error("travel_per_rev", "must be non-zero (unit per motor revolution)")
+        cfg.update(travel_per_rev=per_rev)
+    t.done()
+    return AxisConfig(**cfg)
+
+
+def _gauge(path: str, data: Any) -> GaugeConfig:
+    t = _Table(path, "gauge", data)
+    driver = t.get("driver", str, choices=GAUGE_DRIVERS)
+    cfg = GaugeConfig(
+        driver=driver,
+        port=t.get("port", str),
+        baudrate=t.get("baudrate", int, 19200 if driver == "ft300" else 115200, positive=True),
+        device_id=t.get("device_id", int, 9, low=1, high=247),
+        mode=t.get("mode", str, "stream", choices=("stream", "poll")),
+        rate_hz=t.get("rate_hz", int, 100, low=1, high=2000),
+        timeout_s=t.get("timeout_s", float, 0.5, positive=True),
+        retries=t.get("retries", int, 2, low=0, high=10),
+    )
+    t.done()
+    return cfg
+
+
+def _camera(path: str, data: Any) -> CameraConfig:
+    t = _Table(path, "camera", data)
+    driver = t.get("driver", str, choices=CAMERA_DRIVERS)
+    cfg = CameraConfig(
+        driver=driver,
+        device=t.get("device", str, "" if driver == "sim" else ...),
+        width=t.get("width", int, 640, low=16, high=8192),
+        height=t.get("height", int, 480, low=16, high=8192),
+        fps=t.get("fps", float, 25.0, positive=True),
+        exposure=t.get("exposure", float, None),
+        white_balance_K=t.get("white_balance_K", float, None, low=1000.0, high=15000.0),
+        discard_frames=t.get("discard_frames", int, 5, low=0, high=1000),
+    )
+    t.done()
+    return cfg
+
+
+def _safety(path: str, data: Any) -> SafetyConfig:
+    t = _Table(path, "safety", data)
+    cfg = SafetyConfig(
+        max_force_N=t.vector("max_force_N", 3, positive=True),
+        max_torque_Nmm=t.vector("max_torque_Nmm", 3, positive=True),
+        poll_s=t.get("poll_s", float, 0.02, low=0.001, high=1.0),
+    )
+    t.done()
+    return cfg
+
+
+def _pendant(path: str, data: Any) -> PendantConfig:
+    t = _Table(path, "pendant", data)
+    cfg = PendantConfig(
+        vendor_id=t.get("vendor_id", int, None, low=0, high=0xFFFF),
+        product_id=t.get("product_id", int, None, low=0, high=0xFFFF),
+        deadband=t.get("deadband", float, 0.15, low=0.0, high=0.9),
+    )
+    t.done()
+    return cfg
+
+
+def parse_config(text: str, path: str = "<string>") -> RigConfig:
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(path, "-", f"not valid TOML: {exc}") from exc
+    top = _Table(path, "", data)
+    rig = _Table(path, "rig", top.get("rig", dict, {}))
+    name = rig.get("name", str, Path(path).stem)
+    rig.done()
+    axes_table = _Table(path, "axes", top.get("axes", dict, {}))
+    axes = {}
+    for axis_name in axes_table.data:
+        if axis_name not in AXIS_NAMES:
+            raise axes_table.error(axis_name, f"unknown axis; expected one of {', '.join(AXIS_NAMES)}")
+        axes[axis_name] = _axis(path, axis_name, axes_table.get(axis_name, dict))
+    gauge = _gauge(path, top.get("gauge", dict)) if "gauge" in data else None
+    camera = _camera(path, top.get("camera", dict)) if "camera" in data else None
+    safety = _safety(path, top.get("safety", dict)) if "safety" in data else None
+    pendant = _pendant(path, top.get("pendant", dict)) if "pendant" in data else None
+    top.done()
+    if axes and safety is None:
+        raise ConfigError(path, "safety", "is required when axes are configured: no stage moves without force limits "
+                                          "(max_force_N = [Fx, Fy, Fz], max_torque_Nmm = [Mx, My, Mz])")
+    if axes and gauge is None:
+        raise ConfigError(path, "gauge", "is required when axes are configured: force limits need a force gauge")
+    _check_ports(path, axes, gauge)
+    return RigConfig(path=path, name=name, axes=axes, gauge=gauge, camera=camera, safety=safety, pendant=pendant)
+
+
+def _check_ports(path: str, axes: dict[str, AxisConfig], gauge: GaugeConfig | None) -> None:
+    by_port: dict[str, AxisConfig] = {}
+    for a in axes.values():
+        other = by_port.setdefault(a.port, a)
+        if other is not a and (other.driver, other.baudrate) != (a.driver, a.baudrate):
+            raise ConfigError(path, f"axes.{a.name}.port",
+                              f"{a.port} is shared with axis {other.name} ({other.driver} @ {other.baudrate} baud) "
+                              f"but this axis is {a.driver} @ {a.baudrate} baud")
+        if other is not a and a.device == other.device and a.axis_number == other.axis_number:
+            raise ConfigError(path, f"axes.{a.name}.device", f"device {a.device} on {a.port} is already axis {other.name}")
+    if gauge is not None and gauge.port in by_port:
+        raise ConfigError(path, "gauge.port", f"{gauge.port} is also used by axis {by_port[gauge.port].name}; "
+                                              "the gauge needs its own port (its stream mode owns the line)")
+
+
+def load_config(path: str | Path) -> RigConfig:
+    p = Path(path)
+    try:
+        text = p.read_text()
+    except FileNotFoundError as exc:
+        raise ConfigError(str(p), "-", "file not found") from exc
+    except OSError as exc:
+        raise ConfigError(str(p), "-", f"cannot read: {exc}") from exc
+    return parse_config(text, str(p))

@@ -1,0 +1,161 @@
+"""Tactile camera: a newest-frame grabber over any OpenCV-style capture source.
+
+OpenCV's V4L2 backend queues about four buffers, so reading on demand returns a
+stale frame. A grabber thread reads continuously and keeps only the newest frame,
+stamped with the host clock at arrival; ``read`` returns a frame never returned
+before. The same class reads recorded frames (``FolderSource``, a video file through
+``cv2.VideoCapture``) and the simulated camera.
+"""
+
+from __future__ import annotations
+
+import threading
+from pathlib import Path
+from typing import Protocol
+
+import numpy as np
+
+from rig.clock import Clock
+from rig.errors import DeviceDisconnected, DeviceTimeout
+from rig.types import Frame
+
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff")
+
+
+class CaptureSource(Protocol):
+    """The part of ``cv2.VideoCapture`` the camera uses."""
+
+    def read(self) -> tuple[bool, np.ndarray | None]: ...
+
+    def release(self) -> None: ...
+
+
+class FolderSource:
+    """Frames from a folder of images in name order, at ``fps`` on ``clock`` (0: as fast as read)."""
+
+    def __init__(self, folder: str | Path, clock: Clock, *, fps: float = 0.0, loop: bool = False):
+        import cv2
+
+        self._cv2 = cv2
+        self.folder = Path(folder)
+        if not self.folder.is_dir():
+            raise FileNotFoundError(f"recorded frames: {self.folder} is not a folder")
+        self.paths = sorted(p for p in self.folder.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES)
+        if not self.paths:
+            raise FileNotFoundError(f"recorded frames: no images ({', '.join(IMAGE_SUFFIXES)}) in {self.folder}")
+        self.clock = clock
+        self.period_s = 1.0 / fps if fps > 0 else 0.0
+        self.loop = loop
+        self._i = 0
+        self._next_t: float | None = None
+
+    def read(self) -> tuple[bool, np.ndarray | None]:
+        if self._i >= len(self.paths):
+            if not self.loop:
+                return False, None
+            self._i = 0
+        if self.period_s:
+            now = self.clock.now()
+            if self._next_t is None:
+                self._next_t = now
+            self.clock.sleep(self._next_t - now)
+            self._next_t += self.period_s
+        image = self._cv2.imread(str(self.paths[self._i]), self._cv2.IMREAD_COLOR)
+        self._i += 1
+        if image is None:
+            raise ValueError(f"recorded frames: cannot decode {self.paths[self._i - 1]}")
+        return True, image
+
+    def release(self) -> None:
+        self._i = len(self.paths)
+        self.loop = False
+
+
+def open_v4l2(device: str | int, *, width: int, height: int, fps: float, exposure: float | None,
+              white_balance_K: float | None, fourcc: str = "MJPG"):
+    """Open a UVC camera through OpenCV's V4L2 backend with exposure and white balance locked.
+
+    Thin on purpose: everything else (grabbing, stamping, discarding) is in ``Camera``.
+    Raises DeviceDisconnected if the device cannot be opened.
+    """
+    import cv2
+
+    cap = cv2.VideoCapture(device, cv2.CAP_V4L2)
+    if not cap.isOpened():
+        raise DeviceDisconnected(f"camera {device}", "open", None, "cannot open V4L2 device (is it plugged in, and are you in group 'video'?)")
+    cap.set(cv2.CAP_PROP_FOURCC, cv2.VideoWriter_fourcc(*fourcc))
+    cap.set(cv2.CAP_PROP_FRAME_WIDTH, width)
+    cap.set(cv2.CAP_PROP_FRAME_HEIGHT, height)
+    cap.set(cv2.CAP_PROP_FPS, fps)
+    cap.set(cv2.CAP_PROP_BUFFERSIZE, 1)
+    if exposure is not None:
+        cap.set(cv2.CAP_PROP_AUTO_EXPOSURE, 1)  # V4L2: 1 = manual, 3 = aperture priority (auto)
+        cap.set(cv2.CAP_PROP_EXPOSURE, exposure)
+    if white_balance_K is not None:
+        cap.set(cv2.CAP_PROP_AUTO_WB, 0)
+        cap.set(cv2.CAP_PROP_WB_TEMPERATURE, white_balance_K)
+    return cap
+
+
+class Camera:
+    """Newest-frame camera over a capture source; the first ``discard_frames`` are dropped."""
+
+    def __init__(self, source: CaptureSource, clock: Clock, *, name: str = "camera", discard_frames: int = 5):
+        self.source = source
+        self.clock = clock
+        self.name = name
+        self.discard_frames = discard_frames
+        self._cond = threading.Condition()
+        self._newest: Frame | None = None
+        self._returned = -1
+        self._arrived = 0
+        self.error: Exception | None = None
+        self.ended = False
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._grab, name=f"grab-{name}", daemon=True)
+        self._thread.start()
+
+    def _grab(self) -> None:
+        while not self._stop.is_set():
+            try:
+                ok, image = self.source.read()
+            except Exception as exc:  # kept and raised to the reader; never swallowed
+                with self._cond:
+                    self.error = exc
+                    self._cond.notify_all()
+                return
+            t = self.clock.now()
+            if not ok or image is None:
+                with self._cond:
+                    self.ended = True
+                    self._cond.notify_all()
+                return
+            self._arrived += 1
+            if self._arrived <= self.discard_frames:
+                continue  # first frames after opening are dark or not yet exposed
+            with self._cond:
+                index = self._newest.index + 1 if self._newest else 0
+                self._newest = Frame(t_s=t, index=index, image=image)
+                self._cond.notify_all()
+
+    def read(self, timeout_s: float = 1.0) -> Frame:
+        """The newest frame not returned before. Raises DeviceTimeout or DeviceDisconnected."""
+        with self._cond:
+            fresh = lambda: (self._newest is not None and self._newest.index > self._returned) or self.error or self.ended
+            if not self._cond.wait_for(fresh, timeout=timeout_s):
+                raise DeviceTimeout(self.name, "read frame", None, f"no new frame within {timeout_s:g} s")
+            if self._newest is not None and self._newest.index > self._returned:
+                self._returned = self._newest.index
+                return self._newest
+            if self.error is not None:
+                raise DeviceDisconnected(self.name, "read frame", None, f"capture failed: {self.error}")
+            raise DeviceDisconnected(self.name, "read frame", None, "the capture source ended (camera unplugged or end of recording)")
+
+    @property
+    def frames_arrived(self) -> int:
+        return self._arrived
+
+    def close(self) -> None:
+        self._stop.set()
+        self.source.release()
+        self._thread.join(timeout=2.0)

@@ -1,0 +1,92 @@
+"""SRI M8128 six-axis interface over serial (115200) or TCP (port 4008).
+
+ASCII commands (``AT+SMPF=<Hz>``, ``AT+DCKMD=SUM``, ``AT+GOD`` one sample,
+``AT+GSD`` stream, ``AT+GSD=STOP``) answered ``ACK+...$OK\\r\\n``; data frames are
+``0xAA 0x55, length (u16 BE, 27), packet number (u16 BE), six float32 LE, sum byte``
+with forces in N and moments in N·m. The sum byte is the low byte of the sum of the
+24 data bytes.
+"""
+
+from __future__ import annotations
+
+import struct
+
+import numpy as np
+
+from rig.clock import Clock
+from rig.drivers.wrench_stream import FrameSync, GaugeBase
+from rig.errors import DeviceRejected, FramingError
+from rig.transport.serial_link import SerialLink
+
+FRAME_HEADER = b"\xaa\x55"
+FRAME_LENGTH = 31  # header 2 + length 2 + packet 2 + data 24 + sum 1
+PAYLOAD_LENGTH = 27
+UNITS = np.array([1.0, 1.0, 1.0, 1000.0, 1000.0, 1000.0])  # N, N, N, N·m→N·mm ×3
+
+
+def frame_valid(frame: bytes) -> bool:
+    if len(frame) != FRAME_LENGTH or frame[:2] != FRAME_HEADER:
+        return False
+    if int.from_bytes(frame[2:4], "big") != PAYLOAD_LENGTH:
+        return False
+    return sum(frame[6:30]) & 0xFF == frame[30]
+
+
+def decode_frame(frame: bytes) -> np.ndarray:
+    return np.array(struct.unpack("<6f", frame[6:30]), dtype=np.float64) * UNITS
+
+
+def encode_frame(values: np.ndarray, packet: int) -> bytes:
+    """The frame the interface sends for ``values`` (N, N·mm); for the simulator and tests."""
+    data = struct.pack("<6f", *(np.asarray(values, dtype=np.float64) / UNITS))
+    return FRAME_HEADER + struct.pack(">HH", PAYLOAD_LENGTH, packet & 0xFFFF) + data + bytes([sum(data) & 0xFF])
+
+
+class M8128(GaugeBase):
+    def __init__(self, link: SerialLink, clock: Clock, *, name: str = "gauge", rate_hz: int = 100,
+                 buffer_size: int = 4096):
+        super().__init__(clock, buffer_size)
+        self.link = link
+        self.name = name
+        self.rate_hz = rate_hz
+        self.label = f"{name} (SRI M8128 on {link.url})"
+
+    def make_sync(self) -> FrameSync:
+        return FrameSync(FRAME_HEADER, FRAME_LENGTH, frame_valid)
+
+    decode = staticmethod(decode_frame)
+
+    def command(self, text: str) -> str:
+        """Send an AT command and return its ACK line; a missing ``$OK`` is a rejection."""
+        with self.link.lock:
+            self.link.discard_input()
+            self.link.write(f"{text}\r\n".encode("ascii"), text)
+            reply = self.link.read_until(b"\r\n", text).decode("ascii", "replace").strip()
+        if not reply.startswith("ACK+") or not reply.endswith("$OK"):
+            raise DeviceRejected(self.label, text, reply, "no $OK acknowledgement")
+        return reply
+
+    def configure(self) -> None:
+        self.command(f"AT+SMPF={self.rate_hz}")
+        self.command("AT+DCKMD=SUM")
+
+    def _poll_raw(self) -> np.ndarray:
+        with self.link.lock:
+            self.link.discard_input()
+            self.link.write(b"AT+GOD\r\n", "AT+GOD")
+            frame = self.link.read_exact(FRAME_LENGTH, "AT+GOD")
+        if not frame_valid(frame):
+            raise FramingError(self.label, "AT+GOD", frame, "bad header, length or sum byte")
+        return decode_frame(frame)
+
+    def _stream_open(self):
+        with self.link.lock:
+            self.link.discard_input()
+            self.link.write(b"AT+GSD\r\n", "AT+GSD")
+        return self.link.read_available
+
+    def _stream_close(self) -> None:
+        with self.link.lock:
+            self.link.write(b"AT+GSD=STOP\r\n", "AT+GSD=STOP")
+            while self.link.read_available():  # drain frames in flight until quiet
+                pass

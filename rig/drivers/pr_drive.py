@@ -1,0 +1,91 @@
+"""A Modbus RTU stepper/servo drive in PR (path) mode as one rig axis.
+
+``position = pulses * scale + offset`` with ``scale = travel_per_rev / pulses_per_rev``
+(mm or deg per pulse). A move writes path 0 (mode, target, speed, ramps) in one
+function-16 request and triggers it through the control register.
+"""
+
+from __future__ import annotations
+
+from rig.drivers import pr_registers as reg
+from rig.errors import DeviceFault
+from rig.transport.modbus_bus import ModbusBus, join_int32, split_int32
+from rig.types import AxisStatus, MotionState
+
+
+class PrDriveAxis:
+    def __init__(self, bus: ModbusBus, *, name: str, device_id: int, pulses_per_rev: int,
+                 travel_per_rev: float, offset: float = 0.0, unit: str = "mm",
+                 accel_ms_per_krpm: int = 100, requires_home: bool = True):
+        if pulses_per_rev <= 0 or travel_per_rev == 0:
+            raise ValueError(f"axis {name}: pulses_per_rev must be > 0 and travel_per_rev non-zero")
+        self.bus = bus
+        self.name = name
+        self.device_id = device_id
+        self.pulses_per_rev = pulses_per_rev
+        self.travel_per_rev = travel_per_rev
+        self.scale = travel_per_rev / pulses_per_rev
+        self.offset = offset
+        self.unit = unit
+        self.accel_ms_per_krpm = accel_ms_per_krpm
+        self.requires_home = requires_home
+        self.label = f"{name} (PR drive id {device_id} on {bus.url})"
+
+    # native units, in one place
+    def to_native(self, position: float) -> int:
+        return round((position - self.offset) / self.scale)
+
+    def to_position(self, pulses: int) -> float:
+        return pulses * self.scale + self.offset
+
+    def speed_to_rpm(self, speed: float) -> int:
+        return max(1, round(abs(speed / self.travel_per_rev) * 60.0))
+
+    def _read(self, address: int, count: int) -> list[int]:
+        return self.bus.read_holding(self.device_id, address, count, device=self.label)
+
+    def _write(self, address: int, values: list[int]) -> None:
+        if len(values) == 1:
+            self.bus.write_register(self.device_id, address, values[0], device=self.label)
+        else:
+            self.bus.write_registers(self.device_id, address, values, device=self.label)
+
+    def check_pulses_per_rev(self) -> None:
+        """Refuse to run if the drive's pulses/rev differ from the config (wrong scale)."""
+        (value,) = self._read(reg.PULSES_PER_REV, 1)
+        if value != self.pulses_per_rev:
+            raise DeviceFault(self.label, "read pulses per rev", value,
+                              f"drive is set to {value} pulses/rev but the config says {self.pulses_per_rev}")
+
+    def position(self) -> float:
+        high, low = self._read(reg.COMMAND_POS_HIGH, 2)
+        return self.to_position(join_int32(high, low))
+
+    def status(self) -> AxisStatus:
+        (control,) = self._read(reg.PR_CONTROL, 1)
+        (alarm,) = self._read(reg.ALARM_CODE, 1)
+        warnings = (f"ALARM 0x{alarm:04X}",) if alarm else ()
+        return AxisStatus(
+            position=self.position(),
+            state=MotionState.BUSY if control & reg.STATUS_RUNNING else MotionState.IDLE,
+            homed=bool(control & reg.STATUS_HOMED) or not self.requires_home,
+            warnings=warnings,
+        )
+
+    def faults(self, status: AxisStatus) -> list[str]:
+        return [w for w in status.warnings if w.startswith("ALARM")]
+
+    def move_to(self, target: float, speed: float) -> None:
+        high, low = split_int32(self.to_native(target))
+        self._write(reg.PR0_MODE, [reg.MODE_ABSOLUTE, high, low, self.speed_to_rpm(speed),
+                                   self.accel_ms_per_krpm, self.accel_ms_per_krpm])
+        self._write(reg.PR_CONTROL, [reg.CTRL_TRIGGER_PR0])
+
+    def stop(self) -> None:
+        self._write(reg.PR_CONTROL, [reg.CTRL_EMERGENCY_STOP])
+
+    def home(self) -> None:
+        self._write(reg.PR_CONTROL, [reg.CTRL_HOME])
+
+    def close(self) -> None:
+        pass  # the bus owns the port

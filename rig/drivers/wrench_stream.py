@@ -1,0 +1,217 @@
+"""Streaming six-axis samples: frame sync, a bounded timestamped buffer, a reader thread,
+and the gauge behaviour (tare, fresh reads) shared by every gauge driver.
+"""
+
+from __future__ import annotations
+
+import bisect
+import collections
+import threading
+from typing import Callable
+
+import numpy as np
+
+from rig.clock import Clock
+from rig.errors import DeviceError, DeviceTimeout
+from rig.types import Wrench
+
+
+class FrameSync:
+    """Cuts fixed-length frames starting with ``header`` out of a byte stream.
+
+    A frame failing ``valid`` (checksum/CRC) is counted and skipped one byte at a
+    time, so one corrupted frame costs that frame only, never a wrong value.
+    """
+
+    def __init__(self, header: bytes, length: int, valid: Callable[[bytes], bool]):
+        self.header = header
+        self.length = length
+        self.valid = valid
+        self._buf = bytearray()
+        self.frames_ok = 0
+        self.frames_bad = 0
+        self.bytes_skipped = 0
+
+    def feed(self, data: bytes) -> list[bytes]:
+        self._buf += data
+        out = []
+        while True:
+            i = self._buf.find(self.header)
+            if i < 0:
+                keep = len(self.header) - 1
+                self.bytes_skipped += max(0, len(self._buf) - keep)
+                del self._buf[: max(0, len(self._buf) - keep)]
+                return out
+            if i:
+                self.bytes_skipped += i
+                del self._buf[:i]
+            if len(self._buf) < self.length:
+                return out
+            frame = bytes(self._buf[: self.length])
+            if self.valid(frame):
+                self.frames_ok += 1
+                out.append(frame)
+                del self._buf[: self.length]
+            else:
+                self.frames_bad += 1
+                del self._buf[:1]
+
+
+class WrenchBuffer:
+    """The newest ``capacity`` samples, host-timestamped, safe across threads."""
+
+    def __init__(self, capacity: int = 4096):
+        self._samples: collections.deque[Wrench] = collections.deque(maxlen=capacity)
+        self._cond = threading.Condition()
+        self.total = 0
+
+    def push(self, sample: Wrench) -> None:
+        with self._cond:
+            self._samples.append(sample)
+            self.total += 1
+            self._cond.notify_all()
+
+    def latest(self) -> Wrench | None:
+        with self._cond:
+            return self._samples[-1] if self._samples else None
+
+    def since(self, t_s: float) -> list[Wrench]:
+        with self._cond:
+            return [s for s in self._samples if s.t_s > t_s]
+
+    def wait_new(self, after_total: int, n: int, timeout_s: float) -> bool:
+        """Block (real time, bounded) until ``n`` samples arrived after ``after_total``."""
+        with self._cond:
+            return self._cond.wait_for(lambda: self.total - after_total >= n, timeout=timeout_s)
+
+    def at(self, t_s: float) -> tuple[np.ndarray, float]:
+        """Wrench interpolated at ``t_s`` and the distance (s) to the nearest sample."""
+        with self._cond:
+            samples = list(self._samples)
+        if not samples:
+            raise LookupError("no samples")
+        times = [s.t_s for s in samples]
+        i = bisect.bisect_left(times, t_s)
+        if i == 0 or i == len(samples):
+            s = samples[0] if i == 0 else samples[-1]
+            return s.as_array(), abs(s.t_s - t_s)
+        a, b = samples[i - 1], samples[i]
+        w = (t_s - a.t_s) / (b.t_s - a.t_s) if b.t_s > a.t_s else 0.0
+        return a.as_array() * (1 - w) + b.as_array() * w, min(t_s - a.t_s, b.t_s - t_s)
+
+
+class StreamReader:
+    """Reads chunks in a thread, cuts frames, decodes and buffers them.
+
+    An error in the thread (the port vanished) is kept and raised to the next caller
+    of ``check``; it is never swallowed.
+    """
+
+    def __init__(self, read_chunk: Callable[[], bytes], sync: FrameSync,
+                 decode: Callable[[bytes], np.ndarray], buffer: WrenchBuffer, clock: Clock, name: str):
+        self.read_chunk = read_chunk
+        self.sync = sync
+        self.decode = decode
+        self.buffer = buffer
+        self.clock = clock
+        self.error: DeviceError | None = None
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name=f"stream-{name}", daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        while not self._stop.is_set():
+            try:
+                data = self.read_chunk()
+            except DeviceError as exc:
+                self.error = exc
+                return
+            if not data:
+                continue
+            t = self.clock.now()  # host time at arrival
+            for frame in self.sync.feed(data):
+                self.buffer.push(Wrench.from_array(t, self.decode(frame)))
+
+    def check(self) -> None:
+        if self.error is not None:
+            raise self.error
+
+    def stop(self, timeout_s: float = 2.0) -> None:
+        self._stop.set()
+        self._thread.join(timeout=timeout_s)
+
+
+class GaugeBase:
+    """Tare and fresh reads for a gauge that can poll and stream.
+
+    Subclasses provide ``_poll_raw`` (one untared sample), ``_stream_open`` (start
+    streaming, return a chunk reader), ``_stream_close``, ``sync`` and ``decode``.
+    """
+
+    name: str
+    label: str
+
+    def __init__(self, clock: Clock, buffer_size: int = 4096, stale_after_s: float = 0.5):
+        self.clock = clock
+        self.bias = np.zeros(6)
+        self.buffer = WrenchBuffer(buffer_size)
+        self.stale_after_s = stale_after_s
+        self._reader: StreamReader | None = None
+
+    @property
+    def streaming(self) -> bool:
+        return self._reader is not None
+
+    def start_stream(self) -> None:
+        if self._reader is None:
+            read_chunk = self._stream_open()
+            self._reader = StreamReader(read_chunk, self.make_sync(), self.decode, self.buffer, self.clock, self.name)
+
+    def stop_stream(self) -> None:
+        if self._reader is not None:
+            reader, self._reader = self._reader, None
+            reader.stop()
+            self._stream_close()
+
+    def stream_stats(self) -> dict:
+        sync = self._reader.sync if self._reader else None
+        return {
+            "samples": self.buffer.total,
+            "frames_bad": sync.frames_bad if sync else 0,
+            "bytes_skipped": sync.bytes_skipped if sync else 0,
+        }
+
+    def _raw_sample(self) -> Wrench:
+        if self._reader is None:
+            return Wrench.from_array(self.clock.now(), self._poll_raw())
+        self._reader.check()
+        sample = self.buffer.latest()
+        if sample is None or self.clock.now() - sample.t_s > self.stale_after_s:
+            before = self.buffer.total
+            if not self.buffer.wait_new(before, 1, timeout_s=max(self.stale_after_s, 0.5)):
+                self._reader.check()
+                raise DeviceTimeout(self.label, "stream", None, "no stream sample arrived")
+            sample = self.buffer.latest()
+        return sample
+
+    def read(self) -> Wrench:
+        return self._raw_sample().minus(self.bias)
+
+    def read_raw(self) -> Wrench:
+        return self._raw_sample()
+
+    def tare(self, n_samples: int = 20) -> np.ndarray:
+        """Average ``n_samples`` fresh samples and subtract them from later reads."""
+        if self._reader is None:
+            samples = [self._poll_raw() for _ in range(n_samples)]
+        else:
+            before = self.buffer.total
+            if not self.buffer.wait_new(before, n_samples, timeout_s=5.0):
+                self._reader.check()
+                raise DeviceTimeout(self.label, "tare", None, f"fewer than {n_samples} samples in 5 s")
+            samples = [s.as_array() for s in self.buffer.since(float("-inf"))[-n_samples:]]
+        self.bias = np.mean(samples, axis=0)
+        return self.bias
+
+    def close(self) -> None:
+        self.stop_stream()

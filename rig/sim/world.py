@@ -1,0 +1,77 @@
+"""The one physical world behind every simulated device of a rig.
+
+Four stages (x, y, z, θ) carry the indenter; the contact model turns the pose into
+the wrench the gauge simulators report, and (later) the surface the camera renders.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from rig.clock import Clock
+from rig.sim.contact import ContactModel, Pose, SpringContact
+from rig.sim.stage import SimStage, StageSpec
+
+AXES = ("x", "y", "z", "theta")
+
+
+@dataclass(frozen=True)
+class AxisGeometry:
+    """Where the contact point is in stage coordinates, and which way is +."""
+
+    origin: float  # stage position (from home) at the contact point
+    sign: float = 1.0  # +1: stage + is world +; -1: stage + is world -
+
+
+@dataclass
+class WorldSpec:
+    stages: dict[str, StageSpec] = field(default_factory=lambda: {
+        # x, y: 25 mm stages homing at one end; contact point mid-travel.
+        "x": StageSpec(travel=(0.0, 25.0), max_speed=5.0, accel=20.0),
+        "y": StageSpec(travel=(0.0, 25.0), max_speed=5.0, accel=20.0),
+        # z homes at the top and moves down; the gel surface is 20 mm below home.
+        "z": StageSpec(travel=(0.0, 25.0), max_speed=5.0, accel=20.0),
+        "theta": StageSpec(travel=(0.0, 360.0), max_speed=30.0, accel=120.0),
+    })
+    geometry: dict[str, AxisGeometry] = field(default_factory=lambda: {
+        "x": AxisGeometry(origin=12.5),
+        "y": AxisGeometry(origin=12.5),
+        "z": AxisGeometry(origin=20.0, sign=-1.0),
+        "theta": AxisGeometry(origin=180.0),
+    })
+    # Start above the contact point, 5 mm clear of the gel, already homed.
+    start: dict[str, float] = field(default_factory=lambda: {"x": 12.5, "y": 12.5, "z": 15.0, "theta": 180.0})
+    gauge_offset: tuple[float, ...] = (0.12, -0.08, 0.35, 4.0, -3.0, 1.5)  # unloaded bias, N / N·mm
+    gauge_noise: tuple[float, ...] = (0.002, 0.002, 0.004, 0.05, 0.05, 0.05)  # 1σ per sample
+
+
+class SimWorld:
+    def __init__(self, clock: Clock, spec: WorldSpec | None = None, contact: ContactModel | None = None,
+                 seed: int = 0):
+        self.clock = clock
+        self.spec = spec or WorldSpec()
+        self.contact = contact or SpringContact()
+        self.stages = {
+            name: SimStage(name, self.spec.stages[name], position=self.spec.start[name])
+            for name in AXES
+        }
+        self._rng = np.random.default_rng(seed)
+
+    def pose(self, t_s: float | None = None) -> Pose:
+        t = self.clock.now() if t_s is None else t_s
+        rel = {}
+        for name in AXES:
+            g = self.spec.geometry[name]
+            rel[name] = g.sign * (self.stages[name].position(t) - g.origin)
+        return Pose(rel["x"], rel["y"], rel["z"], rel["theta"])
+
+    def true_wrench(self, t_s: float | None = None) -> np.ndarray:
+        """The load on the gel, without gauge bias or noise."""
+        return self.contact.wrench(self.pose(t_s))
+
+    def gauge_wrench(self, t_s: float | None = None) -> np.ndarray:
+        """What a gauge measures: load + unloaded bias + noise (tare removes the bias)."""
+        noise = self._rng.normal(0.0, 1.0, 6) * np.asarray(self.spec.gauge_noise)
+        return self.true_wrench(t_s) + np.asarray(self.spec.gauge_offset) + noise

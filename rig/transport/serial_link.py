@@ -1,0 +1,86 @@
+"""Byte transport over a serial port URL (a device path, a pty, ``socket://host:port``).
+
+The only module (with ``modbus_bus``) that imports pyserial. Every read has a timeout;
+a vanished port becomes ``DeviceDisconnected``, an incomplete read ``DeviceTimeout``.
+"""
+
+from __future__ import annotations
+
+import threading
+
+import serial
+
+from rig.errors import DeviceDisconnected, DeviceTimeout
+
+
+def open_port(url: str, *, baudrate: int, timeout_s: float, device: str) -> serial.SerialBase:
+    """Open ``url`` with pyserial (8N1). Raises DeviceDisconnected naming the device and port."""
+    try:
+        return serial.serial_for_url(url, baudrate=baudrate, timeout=timeout_s, write_timeout=timeout_s)
+    except (serial.SerialException, OSError, ValueError) as exc:
+        raise DeviceDisconnected(device, f"open {url}", None, f"cannot open port {url}: {exc}") from exc
+
+
+class SerialLink:
+    """A serial port shared by the devices on it (a Zaber daisy chain, an RS-485 bus).
+
+    ``lock`` serialises request/reply exchanges between the users of the port.
+    """
+
+    def __init__(self, url: str, *, baudrate: int, timeout_s: float, device: str):
+        self.url = url
+        self.device = device
+        self.timeout_s = timeout_s
+        self.port = open_port(url, baudrate=baudrate, timeout_s=timeout_s, device=device)
+        self.lock = threading.RLock()
+
+    def write(self, data: bytes, command: str) -> None:
+        try:
+            self.port.write(data)
+            self.port.flush()
+        except (serial.SerialException, OSError) as exc:
+            raise DeviceDisconnected(self.device, command, None, f"write to {self.url} failed: {exc}") from exc
+
+    def read_until(self, terminator: bytes, command: str) -> bytes:
+        """Read through ``terminator``; raises DeviceTimeout with what did arrive."""
+        try:
+            data = self.port.read_until(terminator)
+        except (serial.SerialException, OSError) as exc:
+            raise DeviceDisconnected(self.device, command, None, f"read from {self.url} failed: {exc}") from exc
+        if not data.endswith(terminator):
+            raise DeviceTimeout(self.device, command, data, f"no reply within {self.timeout_s:g} s")
+        return data
+
+    def read_exact(self, n: int, command: str) -> bytes:
+        try:
+            data = self.port.read(n)
+        except (serial.SerialException, OSError) as exc:
+            raise DeviceDisconnected(self.device, command, None, f"read from {self.url} failed: {exc}") from exc
+        if len(data) != n:
+            raise DeviceTimeout(self.device, command, data, f"{len(data)} of {n} bytes within {self.timeout_s:g} s")
+        return data
+
+    def read_available(self, max_bytes: int = 65536) -> bytes:
+        """Whatever has arrived (waits up to the timeout for the first byte)."""
+        try:
+            first = self.port.read(1)
+            if not first:
+                return b""
+            waiting = self.port.in_waiting
+            return first + (self.port.read(min(waiting, max_bytes)) if waiting else b"")
+        except (serial.SerialException, OSError) as exc:
+            raise DeviceDisconnected(self.device, "read", None, f"read from {self.url} failed: {exc}") from exc
+
+    def discard_input(self) -> bytes:
+        """Drop stale bytes (a late reply to an earlier, timed-out command)."""
+        try:
+            waiting = self.port.in_waiting
+            return self.port.read(waiting) if waiting else b""
+        except (serial.SerialException, OSError) as exc:
+            raise DeviceDisconnected(self.device, "flush", None, f"{self.url}: {exc}") from exc
+
+    def close(self) -> None:
+        try:
+            self.port.close()
+        except (serial.SerialException, OSError):
+            pass  # closing a port that already vanished is not an error worth raising
