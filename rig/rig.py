@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 from rig.clock import Clock, SystemClock
 from rig.config import RigConfig
-from rig.errors import DeviceError, DeviceFault, DeviceTimeout, RigError, SafetyError
+from rig.errors import DeviceError, DeviceFault, DeviceTimeout, ForceLimitExceeded, RigError, SafetyError
 from rig.factory import PortPool, open_axis, open_camera, open_gauge
 from rig.safety import ForceGuard, check_speed, check_target
 from rig.types import AxisStatus, Wrench
@@ -106,7 +106,7 @@ class Rig:
             s = speed.get(name, cfg.jog_speed) if isinstance(speed, dict) else (cfg.jog_speed if speed is None else speed)
             check_speed(cfg, s)
             speeds[name] = s
-        self.guard.check(self.gauge.read())  # never start a move already over a limit
+        guard = self._guard_for(targets)
         started = self.clock.now()
         try:
             starts = {}
@@ -115,7 +115,7 @@ class Rig:
                 self.axes[name].move_to(target, speeds[name])
             if timeout_s is None:
                 timeout_s = 5.0 + 2.0 * max(abs(targets[n] - starts[n]) / speeds[n] for n in targets)
-            self._wait(tuple(targets), started + timeout_s, f"move to {targets}")
+            self._wait(tuple(targets), started + timeout_s, f"move to {targets}", guard)
         except BaseException:
             self.stop_all()
             raise
@@ -151,10 +151,24 @@ class Rig:
             if not status.homed:
                 raise DeviceFault(self.axes[name].label, "home", status, "homing finished but the axis is not referenced")
 
-    def _wait(self, names: tuple[str, ...], deadline: float, what: str) -> None:
+    def _guard_for(self, targets: dict[str, float]) -> ForceGuard:
+        """The guard for this move. Over a limit already, only lifting z (+z is away from
+        the gel) may start, guarded at the load it starts from so that it cannot grow."""
+        wrench = self.gauge.read_fresh()
+        try:
+            self.guard.check(wrench)
+            return self.guard
+        except ForceLimitExceeded:
+            lifting = set(targets) == {"z"} and targets["z"] > self.axes["z"].position()
+            if not lifting:
+                raise
+            return self.guard.relaxed_to(wrench)
+
+    def _wait(self, names: tuple[str, ...], deadline: float, what: str, guard: ForceGuard | None = None) -> None:
         poll_s = self.config.safety.poll_s
+        guard = guard or self.guard
         while True:
-            self.guard.check(self.gauge.read())
+            guard.check(self.gauge.read())
             busy = False
             for name in names:
                 axis = self.axes[name]

@@ -28,6 +28,16 @@ class ForceGuard:
     def __init__(self, cfg: SafetyConfig):
         self.limits = np.array([*cfg.max_force_N, *cfg.max_torque_Nmm])
 
+    @classmethod
+    def from_limits(cls, limits: np.ndarray) -> "ForceGuard":
+        guard = cls.__new__(cls)
+        guard.limits = np.asarray(limits, dtype=float)
+        return guard
+
+    def relaxed_to(self, wrench: Wrench, margin: float = 0.05) -> "ForceGuard":
+        """Limits raised to the present load (+5 %) where it exceeds them: for a retract."""
+        return ForceGuard.from_limits(np.maximum(self.limits, np.abs(wrench.as_array()) * (1 + margin)))
+
     def check(self, wrench: Wrench) -> None:
         values = wrench.as_array()
         over = np.abs(values) > self.limits

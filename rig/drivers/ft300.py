@@ -13,7 +13,7 @@ import struct
 import numpy as np
 
 from rig.clock import Clock
-from rig.drivers.wrench_stream import FrameSync, GaugeBase
+from rig.drivers.wrench_stream import STREAM_POLL_S, FrameSync, GaugeBase, drain
 from rig.errors import DeviceDisconnected
 from rig.transport.crc import crc_ok
 from rig.transport.modbus_bus import ModbusBus, to_signed16
@@ -75,6 +75,7 @@ class FT300(GaugeBase):
     def _stream_open(self):
         self.bus.write_registers(self.device_id, REG_STREAM, [STREAM_START], device=self.label)
         port = self.bus.raw_port()
+        self._saved_timeout, port.timeout = port.timeout, STREAM_POLL_S
 
         def read_chunk() -> bytes:
             try:
@@ -91,7 +92,7 @@ class FT300(GaugeBase):
             try:
                 port.write(STOP_BYTES)
                 port.flush()
-                while port.read(4096):  # drain frames still in flight, until a timeout of quiet
-                    pass
+                drain(port)  # frames still in flight
+                port.timeout = self._saved_timeout
             except OSError as exc:
                 raise DeviceDisconnected(self.label, "stop stream", None, str(exc)) from exc

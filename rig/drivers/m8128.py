@@ -14,7 +14,7 @@ import struct
 import numpy as np
 
 from rig.clock import Clock
-from rig.drivers.wrench_stream import FrameSync, GaugeBase
+from rig.drivers.wrench_stream import STREAM_POLL_S, FrameSync, GaugeBase, drain
 from rig.errors import DeviceRejected, FramingError
 from rig.transport.serial_link import SerialLink
 
@@ -83,10 +83,11 @@ class M8128(GaugeBase):
         with self.link.lock:
             self.link.discard_input()
             self.link.write(b"AT+GSD\r\n", "AT+GSD")
+            self._saved_timeout, self.link.port.timeout = self.link.port.timeout, STREAM_POLL_S
         return self.link.read_available
 
     def _stream_close(self) -> None:
         with self.link.lock:
             self.link.write(b"AT+GSD=STOP\r\n", "AT+GSD=STOP")
-            while self.link.read_available():  # drain frames in flight until quiet
-                pass
+            drain(self.link.port)  # frames still in flight
+            self.link.port.timeout = self._saved_timeout

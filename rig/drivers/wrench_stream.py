@@ -16,6 +16,24 @@ from rig.errors import DeviceError, DeviceTimeout
 from rig.types import Wrench
 
 
+STREAM_POLL_S = 0.02  # port timeout while streaming: how quickly the reader notices a stop
+DRAIN_QUIET_S = 0.05  # a stream has ended when nothing arrived for this long
+
+
+def drain(port) -> int:
+    """Read and drop bytes until the line has been quiet for DRAIN_QUIET_S; returns the count."""
+    saved, port.timeout = port.timeout, DRAIN_QUIET_S
+    try:
+        n = 0
+        while True:
+            chunk = port.read(4096)
+            if not chunk:
+                return n
+            n += len(chunk)
+    finally:
+        port.timeout = saved
+
+
 class FrameSync:
     """Cuts fixed-length frames starting with ``header`` out of a byte stream.
 
@@ -196,6 +214,16 @@ class GaugeBase:
 
     def read(self) -> Wrench:
         return self._raw_sample().minus(self.bias)
+
+    def read_fresh(self) -> Wrench:
+        """A sample measured after this call (not the newest buffered one)."""
+        if self._reader is None:
+            return self.read()
+        before = self.buffer.total
+        if not self.buffer.wait_new(before, 1, timeout_s=max(self.stale_after_s, 0.5)):
+            self._reader.check()
+            raise DeviceTimeout(self.label, "stream", None, "no stream sample arrived")
+        return self.buffer.latest().minus(self.bias)
 
     def read_raw(self) -> Wrench:
         return self._raw_sample()

@@ -1,0 +1,59 @@
+"""Interactive jogging from the keyboard or the HID pendant."""
+
+from __future__ import annotations
+
+import typer
+
+from rig.cli.keys import keys
+from rig.errors import SafetyError
+
+HELP = "keys: + / up = step up, - / down = step down, ] = step x10, [ = step /10, q = quit"
+
+
+def jog_with_keys(rig, axis: str, step: float, speed: float | None, stream=None) -> None:
+    unit = rig.config.axes[axis].unit
+    typer.echo(HELP)
+    typer.echo(f"{axis} = {rig.axes[axis].position():.4f} {unit}, step {step:g} {unit}")
+    for key in keys(stream):
+        if key in ("q", "esc"):
+            break
+        if key in ("]", "["):
+            step = step * 10 if key == "]" else step / 10
+            typer.echo(f"step {step:g} {unit}")
+            continue
+        direction = {"+": 1, "=": 1, "up": 1, "-": -1, "_": -1, "down": -1}.get(key)
+        if direction is None:
+            typer.echo(HELP)
+            continue
+        try:
+            pos = rig.jog(axis, step=direction * step, speed=speed)
+        except SafetyError as exc:  # a refused step is reported and jogging goes on
+            typer.secho(str(exc), fg=typer.colors.YELLOW)
+            continue
+        typer.echo(f"{axis} = {pos:.4f} {unit}")
+
+
+def jog_with_pendant(rig, axis: str, step: float, speed: float | None, pendant=None) -> None:
+    """Each poll with the cap deflected steps the axis by ``step`` × deflection; button 1 quits."""
+    from rig.drivers.spacemouse import deflection, open_spacemouse
+
+    cfg = rig.config.pendant
+    pendant = pendant or open_spacemouse(cfg.vendor_id if cfg else None, cfg.product_id if cfg else None)
+    deadband = cfg.deadband if cfg else 0.15
+    unit = rig.config.axes[axis].unit
+    typer.echo(f"jogging {axis} with {pendant.name}; press button 1 to quit")
+    try:
+        while True:
+            state = pendant.poll(timeout_ms=50)
+            if state.buttons & 1:
+                break
+            d = deflection(state, axis, deadband)
+            if d:
+                try:
+                    pos = rig.jog(axis, step=d * step, speed=speed)
+                except SafetyError as exc:
+                    typer.secho(str(exc), fg=typer.colors.YELLOW)
+                    continue
+                typer.echo(f"{axis} = {pos:.4f} {unit}")
+    finally:
+        pendant.close()

@@ -1,0 +1,178 @@
+"""``rig``: status, jog, home, zero and the simulated rig.
+
+Commands parse arguments and call library functions; heavy imports happen inside
+the commands so that ``rig --help`` stays fast.
+"""
+
+from __future__ import annotations
+
+import enum
+import functools
+from pathlib import Path
+from typing import Annotated, Optional
+
+import typer
+
+app = typer.Typer(help="Control the tactile-sensing rig: stages, force gauge, camera. "
+                       "Every command takes --config FILE, or --sim for the built-in simulated rig.",
+                  no_args_is_help=True, add_completion=False)
+sim_app = typer.Typer(help="The built-in simulated rig (devices on ptys or loopback sockets).",
+                      no_args_is_help=True)
+app.add_typer(sim_app, name="sim")
+
+ConfigOpt = Annotated[Optional[Path], typer.Option(
+    "--config", "-c", help="Rig config TOML (default: $RIG_CONFIG, then ./rig.toml).", dir_okay=False)]
+SimOpt = Annotated[bool, typer.Option("--sim", help="Use the built-in simulated rig instead of hardware.")]
+
+
+class AxisName(str, enum.Enum):
+    x = "x"
+    y = "y"
+    z = "z"
+    theta = "theta"
+
+
+class Transport(str, enum.Enum):
+    pty = "pty"
+    tcp = "tcp"
+
+
+class GaugeKind(str, enum.Enum):
+    ft300 = "ft300"
+    m8128 = "m8128"
+
+
+def _fail(message: str, code: int = 1):
+    typer.secho(f"error: {message}", fg=typer.colors.RED, err=True)
+    raise typer.Exit(code)
+
+
+def friendly_errors(fn):
+    """Rig errors become one red line and exit 1; Ctrl-C says motion was stopped."""
+
+    @functools.wraps(fn)
+    def wrapper(*args, **kwargs):
+        from rig.errors import RigError
+
+        try:
+            return fn(*args, **kwargs)
+        except RigError as exc:
+            _fail(str(exc))
+        except (FileNotFoundError, ValueError) as exc:
+            _fail(str(exc))
+        except KeyboardInterrupt:
+            typer.secho("interrupted: motion stopped, devices closed", fg=typer.colors.YELLOW, err=True)
+            raise typer.Exit(130)
+
+    return wrapper
+
+
+@app.command()
+@friendly_errors
+def status(config: ConfigOpt = None, sim: SimOpt = False):
+    """Print every axis (position, state, homed, warnings) and the current wrench."""
+    from rig.cli.views import print_status
+    from rig.cli.session import open_rig
+
+    with open_rig(config, sim) as rig:
+        print_status(rig)
+
+
+@app.command()
+@friendly_errors
+def jog(
+    axis: Annotated[AxisName, typer.Option("--axis", "-a", help="Axis to move: x, y, z (mm) or theta (deg).")],
+    step: Annotated[Optional[float], typer.Option(help="Move by this much (mm, or deg for theta) and exit.")] = None,
+    to: Annotated[Optional[float], typer.Option(help="Move to this absolute position (mm or deg) and exit.")] = None,
+    speed: Annotated[Optional[float], typer.Option(
+        help="Speed in mm/s (deg/s for theta); default: the axis's jog_speed from the config.", min=0.0)] = None,
+    key_step: Annotated[float, typer.Option(
+        help="Interactive mode: initial step per keypress (mm or deg); [ and ] divide/multiply it by 10.",
+        min=0.0001)] = 0.1,
+    pendant: Annotated[bool, typer.Option(help="Interactive mode: jog with the HID pendant (SpaceMouse).")] = False,
+    config: ConfigOpt = None,
+    sim: SimOpt = False,
+):
+    """Jog one axis: by --step, to --to, or interactively (keys + and - or arrows; q quits)."""
+    from rig.cli.session import open_rig
+
+    if step is not None and to is not None:
+        _fail("give --step or --to, not both")
+    with open_rig(config, sim, axes=(axis.value,)) as rig:
+        unit = rig.config.axes[axis.value].unit
+        if step is not None or to is not None:
+            final = rig.jog(axis.value, step=step, to=to, speed=speed)
+            typer.echo(f"{axis.value} = {final:.4f} {unit}")
+            return
+        from rig.cli.interactive import jog_with_keys, jog_with_pendant
+
+        if pendant:
+            jog_with_pendant(rig, axis.value, key_step, speed)
+        else:
+            jog_with_keys(rig, axis.value, key_step, speed)
+
+
+@app.command()
+@friendly_errors
+def home(
+    axis: Annotated[Optional[list[AxisName]], typer.Option(
+        "--axis", "-a", help="Axis to home (repeatable); default all. z always goes first.")] = None,
+    config: ConfigOpt = None,
+    sim: SimOpt = False,
+):
+    """Home axes (z first, so the indenter lifts clear before anything slides)."""
+    from rig.cli.session import open_rig
+
+    names = tuple(a.value for a in axis) if axis else None
+    with open_rig(config, sim, axes=names) as rig:
+        rig.home(names)
+        for name, pos in rig.positions().items():
+            typer.echo(f"{name} homed, at {pos:.4f} {rig.config.axes[name].unit}")
+
+
+@app.command()
+@friendly_errors
+def zero(
+    samples: Annotated[int, typer.Option(help="Samples averaged for the tare.", min=1, max=10000)] = 50,
+    config: ConfigOpt = None,
+    sim: SimOpt = False,
+):
+    """Tare the force gauge: average unloaded samples and print the bias removed (N, N·mm)."""
+    from rig.cli.session import open_rig
+    from rig.types import WRENCH_COMPONENTS, WRENCH_UNITS
+
+    with open_rig(config, sim, axes=()) as rig:
+        bias = rig.tare(samples)
+        typer.echo("bias removed: " + ", ".join(
+            f"{c} {v:+.4f} {u}" for c, v, u in zip(WRENCH_COMPONENTS, bias, WRENCH_UNITS)))
+        typer.echo("note: the tare lives in this process; later commands tare again (acquisition does at start)")
+
+
+@sim_app.command("serve")
+@friendly_errors
+def sim_serve(
+    out: Annotated[Path, typer.Option(help="Where to write the rig config that points at the simulators.")] = Path("rig-sim.toml"),
+    transport: Annotated[Transport, typer.Option(help="pty (virtual serial ports) or tcp (socket:// on 127.0.0.1).")] = Transport.pty,
+    gauge: Annotated[GaugeKind, typer.Option(help="Which force gauge to simulate.")] = GaugeKind.ft300,
+):
+    """Start the simulated rig, print its port URLs, write a config; runs until Ctrl-C."""
+    import threading
+
+    from rig.sim.rig_sim import SimulatedRig
+
+    with SimulatedRig(transport=transport.value, gauge=gauge.value) as simulated:
+        out.write_text("# Written by `rig sim serve`; valid while that process runs.\n"
+                       "# The simulated camera lives in-process only: use --sim for frames.\n"
+                       + simulated.config_toml(with_camera=False))
+        for name, server in simulated.servers.items():
+            typer.echo(f"{name:7s} {server.url}")
+        typer.echo(f"config  {out}   (try: rig status --config {out})")
+        typer.echo("serving; Ctrl-C stops")
+        try:
+            threading.Event().wait()
+        except KeyboardInterrupt:
+            typer.echo("stopped")
+
+
+if __name__ == "__main__":
+    app()

@@ -1,0 +1,43 @@
+"""Open the rig a command needs: from --config FILE, or the built-in simulated rig (--sim)."""
+
+from __future__ import annotations
+
+import contextlib
+import os
+from pathlib import Path
+
+from rig.errors import ConfigError
+
+DEFAULT_CONFIG = "rig.toml"
+
+
+def resolve_config_path(config: Path | None) -> Path:
+    if config is not None:
+        return config
+    env = os.environ.get("RIG_CONFIG")
+    if env:
+        return Path(env)
+    if Path(DEFAULT_CONFIG).exists():
+        return Path(DEFAULT_CONFIG)
+    raise ConfigError(DEFAULT_CONFIG, "-", "no rig config: pass --config FILE, set RIG_CONFIG, "
+                                           "or use --sim for the built-in simulated rig")
+
+
+@contextlib.contextmanager
+def open_rig(config: Path | None, sim: bool, *, axes: tuple[str, ...] | None = None, gauge: bool = True,
+             camera: bool = False):
+    """Yield an open ``Rig`` with only the devices asked for; closes everything on exit."""
+    from rig.config import load_config
+    from rig.rig import Rig
+
+    if sim:
+        from rig.sim.rig_sim import SimulatedRig
+
+        with SimulatedRig() as simulated:
+            with Rig.open(simulated.config(), simulated.clock, axes=axes, gauge=gauge, camera=camera,
+                          sim=simulated) as rig:
+                yield rig
+    else:
+        cfg = load_config(resolve_config_path(config))
+        with Rig.open(cfg, axes=axes, gauge=gauge, camera=camera) as rig:
+            yield rig

@@ -1,0 +1,141 @@
+"""The rig on the simulated devices: safety armed on every move."""
+
+import numpy as np
+import pytest
+
+from rig.clock import ManualClock, ScaledClock
+from rig.errors import DeviceFault, ForceLimitExceeded, SafetyError, SoftLimitError
+from rig.rig import Rig
+from rig.sim.rig_sim import SimulatedRig
+
+
+@pytest.fixture
+def sim():
+    with SimulatedRig(ScaledClock(20.0)) as s:  # 20× faster than real time
+        yield s
+
+
+@pytest.fixture
+def rig(sim):
+    with Rig.open(sim.config(), sim.clock) as r:
+        yield r
+
+
+def test_status_has_four_axes_and_a_wrench(rig):
+    st = rig.status()
+    assert set(st.axes) == {"x", "y", "z", "theta"}
+    assert st.axes["z"].position == pytest.approx(5.0, abs=1e-4)
+    assert st.wrench is not None and np.isfinite(st.wrench.as_array()).all()
+
+
+def test_soft_limit_refused_before_any_motion(rig, sim):
+    before = {n: s.position(sim.clock.now()) for n, s in sim.world.stages.items()}
+    with pytest.raises(SoftLimitError, match="nothing was moved"):
+        rig.move({"x": 1.0, "z": -6.0}, 1.0)  # x is fine, z is not: neither moves
+    after = {n: s.position(sim.clock.now()) for n, s in sim.world.stages.items()}
+    assert before == after
+
+
+def test_speed_above_axis_maximum_refused(rig):
+    with pytest.raises(SafetyError, match="speed"):
+        rig.jog("x", step=0.1, speed=50.0)
+
+
+def test_press_follows_physics_and_force_limit_trips(rig, sim):
+    rig.tare(10)
+    rig.move({"z": -1.0}, 2.0)
+    assert rig.gauge.read().fz_N == pytest.approx(6.0, abs=0.1)
+    with pytest.raises(ForceLimitExceeded, match="Fz") as err:
+        rig.move({"z": -4.9}, 5.0)  # 6 N/mm^1.5 × 4.9^1.5 = 65 N > 40 N limit
+    assert err.value.value > 40.0
+    z_now = rig.axes["z"].position()
+    assert not any(s.busy(sim.clock.now()) for s in sim.world.stages.values())  # all stopped
+    assert -4.9 < z_now < -2.5  # stopped between the limit depth (3.8 mm) and the target
+    rig.move({"z": 1.0}, 5.0)  # lifting z out of an overload is allowed; other moves are not
+    assert rig.gauge.read().fz_N == pytest.approx(0.0, abs=0.1)
+
+
+def test_over_the_limit_only_lifting_z_may_start(rig, sim):
+    rig.tare(10)
+    rig.move({"z": -3.5}, 2.0)
+    rig.guard.limits[2] = 20.0  # now 34 N is over the limit
+    with pytest.raises(ForceLimitExceeded):
+        rig.move({"x": 0.5}, 1.0)
+    with pytest.raises(ForceLimitExceeded):
+        rig.move({"z": -3.6}, 1.0)
+    rig.move({"z": 0.5}, 2.0)
+
+
+def test_shear_and_twist_signs(rig):
+    rig.tare(10)
+    rig.move({"z": -0.8}, 2.0)
+    rig.move({"y": 0.5}, 1.0)
+    assert rig.gauge.read().fy_N > 0.5
+    rig.move({"y": -0.5}, 1.0)
+    assert rig.gauge.read().fy_N < -0.5
+    rig.move({"y": 0.0, "theta": 3.0}, {"y": 1.0, "theta": 5.0})
+    assert rig.gauge.read().mz_Nmm > 1.0
+
+
+def test_no_gauge_no_motion(sim):
+    with Rig.open(sim.config(), sim.clock, gauge=False) as rig:
+        with pytest.raises(SafetyError, match="no force gauge"):
+            rig.jog("z", step=0.1)
+        with pytest.raises(SafetyError, match="no force gauge"):
+            rig.home()
+
+
+def test_stall_mid_move_is_a_fault_and_stops_everything(rig, sim):
+    calls = {"n": 0}
+    original = rig.guard.check
+
+    def stall_on_third_poll(wrench):
+        calls["n"] += 1
+        if calls["n"] == 3:
+            sim.world.stages["x"].stall(sim.clock.now())
+        original(wrench)
+
+    rig.guard.check = stall_on_third_poll
+    with pytest.raises(DeviceFault, match="FS"):
+        rig.move({"x": 5.0, "y": 5.0}, 2.0)
+    assert not sim.world.stages["y"].busy(sim.clock.now())
+    assert rig.axes["y"].position() < 5.0
+
+
+def test_keyboard_interrupt_mid_move_stops_motion(rig, sim):
+    calls = {"n": 0}
+    original = rig.guard.check
+
+    def interrupting_check(wrench):
+        calls["n"] += 1
+        if calls["n"] == 3:
+            raise KeyboardInterrupt
+        original(wrench)
+
+    rig.guard.check = interrupting_check
+    with pytest.raises(KeyboardInterrupt):
+        rig.move({"x": 10.0}, 2.0)
+    assert not sim.world.stages["x"].busy(sim.clock.now())
+    assert 0.0 < rig.axes["x"].position() < 10.0
+
+
+def test_home_goes_z_first_and_references(sim):
+    order = []
+    with Rig.open(sim.config(), sim.clock) as rig:
+        for name, axis in rig.axes.items():
+            original = axis.home
+            axis.home = (lambda n, f: (lambda: (order.append(n), f())))(name, original)
+        rig.home()
+        assert order[0] == "z"
+        pos = rig.positions()
+    assert pos["z"] == pytest.approx(20.0, abs=1e-4) and pos["x"] == pytest.approx(-12.5, abs=1e-4)
+
+
+def test_faster_than_real_time_with_manual_clock():
+    clock = ManualClock()
+    with SimulatedRig(clock) as sim, Rig.open(sim.config(), clock, gauge=True) as rig:
+        rig.gauge.stop_stream()  # a manual clock emits no stream on its own: poll instead
+        t0 = clock.now()
+        rig.move({"x": 2.0}, 0.5)  # 4 s of simulated motion, no real waiting
+        assert clock.now() - t0 >= 4.0
+        assert rig.axes["x"].position() == pytest.approx(2.0, abs=1e-4)
