@@ -39,6 +39,7 @@ class Rig:
         self._pool = pool
         self.guard = ForceGuard(config.safety) if config.safety else None
         self.stop_errors: list[DeviceError] = []
+        self._targets: dict[str, float] = {}  # last target each axis reached
 
     @classmethod
     def open(cls, config: RigConfig, clock: Clock | None = None, *, axes: tuple[str, ...] | None = None,
@@ -122,19 +123,29 @@ class Rig:
         final = {name: self.axes[name].position() for name in targets}
         for name, target in targets.items():
             cfg = self.config.axes[name]
-            tol = max(1e-4, 2 * abs(getattr(self.axes[name], "scale", 0.0)))
-            if abs(final[name] - target) > tol:
+            if abs(final[name] - target) > self._tolerance(name):
+                self._targets.pop(name, None)
                 raise DeviceFault(self.axes[name].label, f"move to {target}", final[name],
                                   f"stopped at {final[name]:.5f} {cfg.unit}, not at the target {target:.5f} {cfg.unit}")
+            self._targets[name] = target
         return final
+
+    def _tolerance(self, name: str) -> float:
+        return max(1e-4, 2 * abs(getattr(self.axes[name], "scale", 0.0)))
 
     def jog(self, axis: str, *, step: float | None = None, to: float | None = None,
             speed: float | None = None) -> float:
         if (step is None) == (to is None):
             raise RigError("jog needs exactly one of step or to")
         self._require_armed((axis,))
-        target = self.axes[axis].position() + step if step is not None else to
-        return self.move({axis: target}, speed)[axis]
+        if to is not None:
+            return self.move({axis: to}, speed)[axis]
+        # Step from the last target while the axis still sits there, so that repeated
+        # steps do not accumulate the native-unit rounding of each one.
+        here = self.axes[axis].position()
+        last = self._targets.get(axis)
+        base = last if last is not None and abs(here - last) <= self._tolerance(axis) else here
+        return self.move({axis: base + step}, speed)[axis]
 
     def home(self, names: tuple[str, ...] | None = None, *, timeout_s: float = 120.0) -> None:
         """Home the axes one at a time, z first, under the force guard."""

@@ -130,10 +130,11 @@ class Camera:
                     self.ended = True
                     self._cond.notify_all()
                 return
-            self._arrived += 1
-            if self._arrived <= self.discard_frames:
-                continue  # first frames after opening are dark or not yet exposed
             with self._cond:
+                self._arrived += 1
+                self._cond.notify_all()
+                if self._arrived <= self.discard_frames:
+                    continue  # first frames after opening are dark or not yet exposed
                 index = self._newest.index + 1 if self._newest else 0
                 self._newest = Frame(t_s=t, index=index, image=image)
                 self._cond.notify_all()
@@ -154,6 +155,11 @@ class Camera:
     @property
     def frames_arrived(self) -> int:
         return self._arrived
+
+    def wait_arrived(self, n: int, timeout_s: float) -> bool:
+        """Block (bounded) until ``n`` frames have arrived since opening, discarded ones included."""
+        with self._cond:
+            return self._cond.wait_for(lambda: self._arrived >= n, timeout=timeout_s)
 
     def close(self) -> None:
         self._stop.set()
