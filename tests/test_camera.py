@@ -35,7 +35,7 @@ class GatedSource:
 
     def release(self):
         self.source.release()
-        self.gate.release(100)
+        self.gate.release(100)  # unblock a read waiting at the gate
 
 
 def frame_number(frame):

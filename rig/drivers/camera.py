@@ -9,6 +9,7 @@ before. The same class reads recorded frames (``FolderSource``, a video file thr
 
 from __future__ import annotations
 
+import logging
 import threading
 from pathlib import Path
 from typing import Protocol
@@ -19,6 +20,7 @@ from rig.clock import Clock
 from rig.errors import DeviceDisconnected, DeviceTimeout
 from rig.types import Frame
 
+log = logging.getLogger("rig.camera")
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff")
 
 
@@ -162,6 +164,12 @@ class Camera:
             return self._cond.wait_for(lambda: self._arrived >= n, timeout=timeout_s)
 
     def close(self) -> None:
+        # Let the grabber leave read() before releasing: cv2.VideoCapture is not
+        # thread-safe, and releasing it under a read deadlocks. A source that blocks
+        # for longer (a stalled device) is released anyway to unblock it.
         self._stop.set()
+        self._thread.join(timeout=1.0)
+        if self._thread.is_alive():
+            log.warning("%s: grabber still waiting for a frame; releasing the source under it", self.name)
         self.source.release()
         self._thread.join(timeout=2.0)

@@ -14,6 +14,7 @@ from pymodbus.client import ModbusSerialClient
 from pymodbus.exceptions import ConnectionException, ModbusIOException
 
 from rig.errors import DeviceDisconnected, DeviceRejected, DeviceTimeout
+from rig.transport.serial_link import with_byte_count
 
 # Modbus application exception codes (Modbus Application Protocol v1.1b3, §7).
 EXCEPTION_NAMES = {
@@ -66,6 +67,7 @@ class ModbusBus:
         self.client = ModbusSerialClient(url, baudrate=baudrate, timeout=timeout_s, retries=retries)
         if not self.client.connect():
             raise DeviceDisconnected(device, f"open {url}", None, f"cannot open Modbus port {url}")
+        self.client.socket = with_byte_count(self.client.socket)
 
     def _call(self, what: str, device: str, fn, *args, **kwargs):
         with self.lock:

@@ -13,10 +13,45 @@ import serial
 from rig.errors import DeviceDisconnected, DeviceTimeout
 
 
+class CountingSocketPort:
+    """A pyserial ``socket://`` port whose ``in_waiting`` is the real byte count.
+
+    pyserial's socket handler reports 0 or 1, so readers that size their read by
+    ``in_waiting`` (pymodbus does) fetch one byte per poll: 17 bytes take ~40 ms.
+    Everything else is delegated to the wrapped port.
+    """
+
+    def __init__(self, port):
+        object.__setattr__(self, "_port", port)
+
+    @property
+    def in_waiting(self) -> int:
+        import socket
+
+        sock = self._port._socket
+        try:
+            return len(sock.recv(65536, socket.MSG_PEEK | socket.MSG_DONTWAIT))
+        except BlockingIOError:
+            return 0
+        except OSError as exc:
+            raise serial.SerialException(f"socket failed: {exc}") from exc
+
+    def __getattr__(self, name):
+        return getattr(self._port, name)
+
+    def __setattr__(self, name, value):
+        setattr(self._port, name, value)
+
+
+def with_byte_count(port):
+    """Wrap ``socket://`` ports in CountingSocketPort; other ports are returned as they are."""
+    return CountingSocketPort(port) if hasattr(port, "_socket") else port
+
+
 def open_port(url: str, *, baudrate: int, timeout_s: float, device: str) -> serial.SerialBase:
     """Open ``url`` with pyserial (8N1). Raises DeviceDisconnected naming the device and port."""
     try:
-        return serial.serial_for_url(url, baudrate=baudrate, timeout=timeout_s, write_timeout=timeout_s)
+        return with_byte_count(serial.serial_for_url(url, baudrate=baudrate, timeout=timeout_s, write_timeout=timeout_s))
     except (serial.SerialException, OSError, ValueError) as exc:
         raise DeviceDisconnected(device, f"open {url}", None, f"cannot open port {url}: {exc}") from exc
 
