@@ -91,3 +91,11 @@ def test_simulated_rig_writes_a_valid_config(tmp_path):
         cfg = load_config(path)
     assert set(cfg.axes) == {"x", "y", "z", "theta"} and cfg.gauge.driver == "m8128"
     assert cfg.axes["x"].port.startswith("socket://127.0.0.1:")
+
+
+def test_documented_example_config_is_valid():
+    from pathlib import Path
+
+    cfg = load_config(Path(__file__).parent.parent / "docs" / "rig.example.toml")
+    assert set(cfg.axes) == {"x", "y", "z", "theta"}
+    assert cfg.axes["z"].scale < 0 and cfg.pendant.vendor_id == 0x256F
