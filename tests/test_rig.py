@@ -44,7 +44,7 @@ def test_speed_above_axis_maximum_refused(rig):
 def test_press_follows_physics_and_force_limit_trips(rig, sim):
     rig.tare(10)
     rig.move({"z": -1.0}, 2.0)
-    assert rig.gauge.read().fz_N == pytest.approx(6.0, abs=0.1)
+    assert rig.gauge.read_fresh().fz_N == pytest.approx(6.0, abs=0.1)
     with pytest.raises(ForceLimitExceeded, match="Fz") as err:
         rig.move({"z": -4.9}, 5.0)  # 6 N/mm^1.5 × 4.9^1.5 = 65 N > 40 N limit
     assert err.value.value > 40.0
@@ -52,7 +52,7 @@ def test_press_follows_physics_and_force_limit_trips(rig, sim):
     assert not any(s.busy(sim.clock.now()) for s in sim.world.stages.values())  # all stopped
     assert -4.9 < z_now < -2.5  # stopped between the limit depth (3.8 mm) and the target
     rig.move({"z": 1.0}, 5.0)  # lifting z out of an overload is allowed; other moves are not
-    assert rig.gauge.read().fz_N == pytest.approx(0.0, abs=0.1)
+    assert rig.gauge.read_fresh().fz_N == pytest.approx(0.0, abs=0.1)
 
 
 def test_over_the_limit_only_lifting_z_may_start(rig, sim):
@@ -70,11 +70,11 @@ def test_shear_and_twist_signs(rig):
     rig.tare(10)
     rig.move({"z": -0.8}, 2.0)
     rig.move({"y": 0.5}, 1.0)
-    assert rig.gauge.read().fy_N > 0.5
+    assert rig.gauge.read_fresh().fy_N > 0.5
     rig.move({"y": -0.5}, 1.0)
-    assert rig.gauge.read().fy_N < -0.5
+    assert rig.gauge.read_fresh().fy_N < -0.5
     rig.move({"y": 0.0, "theta": 3.0}, {"y": 1.0, "theta": 5.0})
-    assert rig.gauge.read().mz_Nmm > 1.0
+    assert rig.gauge.read_fresh().mz_Nmm > 1.0
 
 
 def test_no_gauge_no_motion(sim):
