@@ -100,3 +100,10 @@ def test_sim_serve_then_status_from_another_process(tmp_path):
     finally:
         server.send_signal(signal.SIGINT)
         server.wait(timeout=10)
+
+
+def test_later_commands_say_not_yet():
+    bindir = Path(sys.executable).parent
+    for command in ("dataset", "train"):
+        result = subprocess.run([str(bindir / command)], capture_output=True, text=True)
+        assert result.returncode == 2 and "not yet built" in result.stderr

@@ -85,17 +85,22 @@ def test_no_gauge_no_motion(sim):
             rig.home()
 
 
-def test_stall_mid_move_is_a_fault_and_stops_everything(rig, sim):
+def on_poll(rig, n, action):
+    """Run ``action`` at the ``n``-th safety poll of the next move: an event mid-move."""
     calls = {"n": 0}
     original = rig.guard.check
 
-    def stall_on_third_poll(wrench):
+    def check(wrench):
         calls["n"] += 1
-        if calls["n"] == 3:
-            sim.world.stages["x"].stall(sim.clock.now())
+        if calls["n"] == n:
+            action()
         original(wrench)
 
-    rig.guard.check = stall_on_third_poll
+    rig.guard.check = check
+
+
+def test_stall_mid_move_is_a_fault_and_stops_everything(rig, sim):
+    on_poll(rig, 3, lambda: sim.world.stages["x"].stall(sim.clock.now()))
     with pytest.raises(DeviceFault, match="FS"):
         rig.move({"x": 5.0, "y": 5.0}, 2.0)
     assert not sim.world.stages["y"].busy(sim.clock.now())
@@ -103,16 +108,10 @@ def test_stall_mid_move_is_a_fault_and_stops_everything(rig, sim):
 
 
 def test_keyboard_interrupt_mid_move_stops_motion(rig, sim):
-    calls = {"n": 0}
-    original = rig.guard.check
+    def ctrl_c():
+        raise KeyboardInterrupt
 
-    def interrupting_check(wrench):
-        calls["n"] += 1
-        if calls["n"] == 3:
-            raise KeyboardInterrupt
-        original(wrench)
-
-    rig.guard.check = interrupting_check
+    on_poll(rig, 3, ctrl_c)
     with pytest.raises(KeyboardInterrupt):
         rig.move({"x": 10.0}, 2.0)
     assert not sim.world.stages["x"].busy(sim.clock.now())

@@ -34,6 +34,16 @@ class DeviceModel(Protocol):
         """Real seconds between ticks while streaming, or None when idle."""
 
 
+class RequestReplyDevice:
+    """Base for simulated devices that only answer requests (no unsolicited stream)."""
+
+    def tick_interval_s(self) -> float | None:
+        return None
+
+    def tick(self, now_s: float) -> list[bytes]:
+        return []
+
+
 class SimServer:
     """One device model behind one pty or TCP port."""
 

@@ -8,6 +8,8 @@ answer at all.
 
 from __future__ import annotations
 
+from rig.sim.link import RequestReplyDevice
+
 import struct
 from typing import Protocol
 
@@ -46,19 +48,13 @@ def _request_length(buf: bytes) -> int | None:
     return len(buf)  # unknown function: the whole burst is one frame
 
 
-class RtuServer:
+class RtuServer(RequestReplyDevice):
     """Dispatches RTU frames to register devices by device id."""
 
     def __init__(self, devices: dict[int, RegisterDevice]):
         self.devices = devices
         self._buf = b""
         self.crc_errors = 0
-
-    def tick_interval_s(self):
-        return None
-
-    def tick(self, now_s):
-        return []
 
     def feed(self, data: bytes, now_s: float) -> list[bytes]:
         self._buf += data

@@ -6,18 +6,14 @@ expected exchange left unconsumed, as PyMeasure's protocol harness does.
 
 from __future__ import annotations
 
+from rig.sim.link import RequestReplyDevice
 
-class ScriptedDevice:
+
+class ScriptedDevice(RequestReplyDevice):
     def __init__(self, exchanges: list[tuple[bytes, bytes]]):
         self.exchanges = list(exchanges)
         self._buf = b""
         self.errors: list[str] = []
-
-    def tick_interval_s(self):
-        return None
-
-    def tick(self, now_s):
-        return []
 
     def feed(self, data: bytes, now_s: float) -> list[bytes]:
         self._buf += data

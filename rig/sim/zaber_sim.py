@@ -7,6 +7,8 @@ ignored, so the host sees a timeout and retries.
 
 from __future__ import annotations
 
+from rig.sim.link import RequestReplyDevice
+
 from dataclasses import dataclass
 
 from rig.drivers import zaber_ascii as za
@@ -22,17 +24,11 @@ class ZaberDeviceSim:
     cleared_warnings: bool = False
 
 
-class ZaberChainSim:
+class ZaberChainSim(RequestReplyDevice):
     def __init__(self, clock, devices: dict[int, ZaberDeviceSim]):
         self.clock = clock
         self.devices = devices
         self._buf = b""
-
-    def tick_interval_s(self):
-        return None
-
-    def tick(self, now_s):
-        return []
 
     def feed(self, data: bytes, now_s: float) -> list[bytes]:
         self._buf += data
