@@ -1,0 +1,1 @@
+"""The simulated tactile sensor: elastomer contact mechanics and sensor optics."""
