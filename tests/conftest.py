@@ -2,6 +2,7 @@ import pytest
 
 from rig.clock import ManualClock, SystemClock
 from rig.sim.link import SimServer
+from rig.sim.contact import SpringContact
 from rig.sim.world import SimWorld
 
 
@@ -12,7 +13,7 @@ def manual_clock():
 
 @pytest.fixture
 def world(manual_clock):
-    return SimWorld(manual_clock)
+    return SimWorld(manual_clock, contact=SpringContact())
 
 
 @pytest.fixture

@@ -15,6 +15,7 @@ from rig.sim.ft300_sim import Ft300Sim
 from rig.sim.m8128_sim import M8128Sim
 from rig.sim.modbus_rtu import RtuServer
 from rig.sim.pr_drive_sim import PrDriveSim
+from rig.sim.contact import SpringContact
 from rig.sim.world import SimWorld
 from rig.sim.zaber_sim import ZaberChainSim, ZaberDeviceSim
 from rig.transport.modbus_bus import ModbusBus
@@ -111,7 +112,7 @@ def test_modbus_device_vanishes(pr_theta):
 
 @pytest.fixture(params=["ft300", "m8128"])
 def streaming_gauge(request, serve):
-    world = SimWorld(SystemClock())
+    world = SimWorld(SystemClock(), contact=SpringContact())
     world.stages["z"]._pos = world.spec.geometry["z"].origin + 1.0  # 1 mm pressed: Fz = 6 N + bias
     if request.param == "ft300":
         server = serve(Ft300Sim(world), world.clock)

@@ -9,6 +9,7 @@ from rig.drivers.m8128 import M8128
 from rig.errors import DeviceRejected
 from rig.sim.ft300_sim import Ft300Sim
 from rig.sim.m8128_sim import M8128Sim
+from rig.sim.contact import SpringContact
 from rig.sim.world import SimWorld
 from rig.transport.modbus_bus import ModbusBus
 from rig.transport.serial_link import SerialLink
@@ -16,7 +17,7 @@ from rig.transport.serial_link import SerialLink
 
 @pytest.fixture
 def live_world():
-    return SimWorld(SystemClock())
+    return SimWorld(SystemClock(), contact=SpringContact())  # exact numbers for the driver layer
 
 
 def press(world, depth_mm):

@@ -44,37 +44,44 @@ def test_speed_above_axis_maximum_refused(rig):
 def test_press_follows_physics_and_force_limit_trips(rig, sim):
     rig.tare(10)
     rig.move({"z": -1.0}, 2.0)
-    assert rig.gauge.read_fresh().fz_N == pytest.approx(6.0, abs=0.1)
+    expected = sim.world.true_wrench()[2]  # the elastomer solver's own answer at this pose
+    assert 1.0 < expected < 10.0
+    assert rig.gauge.read_fresh().fz_N == pytest.approx(expected, abs=0.05)
+    rig.move({"z": -2.0}, 2.0)
+    assert rig.gauge.read_fresh().fz_N > expected  # deeper presses harder
     with pytest.raises(ForceLimitExceeded, match="Fz") as err:
-        rig.move({"z": -4.9}, 5.0)  # 6 N/mm^1.5 × 4.9^1.5 = 65 N > 40 N limit
+        rig.move({"z": -4.9}, 5.0)  # past the 3 mm gel: the indenter would reach the backing
     assert err.value.value > 40.0
     z_now = rig.axes["z"].position()
     assert not any(s.busy(sim.clock.now()) for s in sim.world.stages.values())  # all stopped
-    assert -4.9 < z_now < -2.5  # stopped between the limit depth (3.8 mm) and the target
+    assert -4.9 < z_now < -2.0  # stopped before the target
     rig.move({"z": 1.0}, 5.0)  # lifting z out of an overload is allowed; other moves are not
-    assert rig.gauge.read_fresh().fz_N == pytest.approx(0.0, abs=0.1)
+    assert rig.gauge.read_fresh().fz_N == pytest.approx(0.0, abs=0.05)
 
 
 def test_over_the_limit_only_lifting_z_may_start(rig, sim):
     rig.tare(10)
-    rig.move({"z": -3.5}, 2.0)
-    rig.guard.limits[2] = 20.0  # now 34 N is over the limit
+    rig.move({"z": -2.0}, 2.0)
+    fz = rig.gauge.read_fresh().fz_N
+    rig.guard.limits[2] = fz / 2  # now the present load is over the limit
     with pytest.raises(ForceLimitExceeded):
         rig.move({"x": 0.5}, 1.0)
     with pytest.raises(ForceLimitExceeded):
-        rig.move({"z": -3.6}, 1.0)
+        rig.move({"z": -2.1}, 1.0)
     rig.move({"z": 0.5}, 2.0)
 
 
 def test_shear_and_twist_signs(rig):
     rig.tare(10)
     rig.move({"z": -0.8}, 2.0)
+    fz = rig.gauge.read_fresh().fz_N
     rig.move({"y": 0.5}, 1.0)
-    assert rig.gauge.read_fresh().fy_N > 0.5
+    assert rig.gauge.read_fresh().fy_N > 0.2 * fz  # dragged along +y (partial slip: below μFz)
     rig.move({"y": -0.5}, 1.0)
-    assert rig.gauge.read_fresh().fy_N < -0.5
-    rig.move({"y": 0.0, "theta": 3.0}, {"y": 1.0, "theta": 5.0})
-    assert rig.gauge.read_fresh().mz_Nmm > 1.0
+    assert rig.gauge.read_fresh().fy_N < -0.2 * fz  # reverses with the direction
+    rig.move({"y": 0.0}, 1.0)
+    rig.move({"theta": 5.0}, 5.0)
+    assert rig.gauge.read_fresh().mz_Nmm > 0.1  # twist +θ: moment +Mz
 
 
 def test_no_gauge_no_motion(sim):

@@ -216,13 +216,20 @@ class GaugeBase:
         return self._raw_sample().minus(self.bias)
 
     def read_fresh(self) -> Wrench:
-        """A sample measured after this call (not the newest buffered one)."""
+        """A sample measured after this call.
+
+        Frames arrive in bursts (USB latency timers, a simulator's tick), and a burst
+        may have been measured before the call even if it arrives after it. The
+        second burst after the call was started after the first one was delivered,
+        so its newest sample is fresh. Costs up to two sample periods.
+        """
         if self._reader is None:
             return self.read()
-        before = self.buffer.total
-        if not self.buffer.wait_new(before, 1, timeout_s=max(self.stale_after_s, 0.5)):
-            self._reader.check()
-            raise DeviceTimeout(self.label, "stream", None, "no stream sample arrived")
+        for _ in range(2):
+            before = self.buffer.total
+            if not self.buffer.wait_new(before, 1, timeout_s=max(self.stale_after_s, 2.0)):
+                self._reader.check()
+                raise DeviceTimeout(self.label, "stream", None, "no stream sample arrived")
         return self.buffer.latest().minus(self.bias)
 
     def read_raw(self) -> Wrench:

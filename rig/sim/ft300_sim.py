@@ -72,4 +72,5 @@ class Ft300Sim(RtuServer):
         return min(0.005, self.schedule.period_s) if self.streaming else None
 
     def tick(self, now_s: float) -> list[bytes]:
-        return [ft.encode_stream_frame(self.world.gauge_wrench(t)) for t in self.schedule.due(now_s)]
+        times = self.schedule.due(now_s)
+        return [ft.encode_stream_frame(w) for w in self.world.gauge_samples(times)]

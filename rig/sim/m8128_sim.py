@@ -15,9 +15,9 @@ class M8128Sim:
         self.packet = 0
         self._buf = b""
 
-    def _frame(self, t_s: float) -> bytes:
+    def _frame(self, values) -> bytes:
         self.packet += 1
-        return m8.encode_frame(self.world.gauge_wrench(t_s), self.packet)
+        return m8.encode_frame(values, self.packet)
 
     def feed(self, data: bytes, now_s: float) -> list[bytes]:
         self._buf += data
@@ -41,7 +41,7 @@ class M8128Sim:
         if cmd == "AT+DCKMD=SUM":
             return [b"ACK+DCKMD=SUM$OK\r\n"]
         if cmd == "AT+GOD":
-            return [self._frame(now_s)]
+            return [self._frame(self.world.gauge_wrench(now_s))]
         if cmd == "AT+GSD":
             self.schedule.start(now_s)
             return []
@@ -54,4 +54,4 @@ class M8128Sim:
         return min(0.005, self.schedule.period_s) if self.schedule.next_t is not None else None
 
     def tick(self, now_s: float) -> list[bytes]:
-        return [self._frame(t) for t in self.schedule.due(now_s)]
+        return [self._frame(w) for w in self.world.gauge_samples(self.schedule.due(now_s))]

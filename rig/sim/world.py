@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from rig.clock import Clock
-from rig.sim.contact import ContactModel, Pose, SpringContact
+from rig.sim.contact import ContactModel, Pose
 from rig.sim.stage import SimStage, StageSpec
 
 AXES = ("x", "y", "z", "theta")
@@ -52,7 +52,12 @@ class SimWorld:
                  seed: int = 0):
         self.clock = clock
         self.spec = spec or WorldSpec()
-        self.contact = contact or SpringContact()
+        if contact is None:
+            from rig.sim.tactile.world_contact import ElastomerContact
+
+            contact = ElastomerContact("sphere10mm")
+        self.contact = contact
+        self._last_true: tuple[float, np.ndarray] | None = None
         self.stages = {
             name: SimStage(name, self.spec.stages[name], position=self.spec.start[name])
             for name in AXES
@@ -73,5 +78,24 @@ class SimWorld:
 
     def gauge_wrench(self, t_s: float | None = None) -> np.ndarray:
         """What a gauge measures: load + unloaded bias + noise (tare removes the bias)."""
-        noise = self._rng.normal(0.0, 1.0, 6) * np.asarray(self.spec.gauge_noise)
-        return self.true_wrench(t_s) + np.asarray(self.spec.gauge_offset) + noise
+        return self.gauge_samples([self.clock.now() if t_s is None else t_s])[0]
+
+    def gauge_samples(self, times: list[float]) -> np.ndarray:
+        """(n, 6) gauge samples at ``times`` (ascending), with one physics solve at most.
+
+        The load is solved at the last time and interpolated from the previous call's
+        last sample for the earlier ones: a stream of thousands of samples a second
+        costs one contact solve per simulator tick. Noise is drawn per sample.
+        """
+        if not times:
+            return np.zeros((0, 6))
+        t_end = times[-1]
+        end = self.true_wrench(t_end)
+        start_t, start = self._last_true if self._last_true is not None else (t_end, end)
+        self._last_true = (t_end, end)
+        out = np.empty((len(times), 6))
+        for i, t in enumerate(times):
+            w = 1.0 if t_end <= start_t else min(1.0, max(0.0, (t - start_t) / (t_end - start_t)))
+            out[i] = start + (end - start) * w
+        noise = self._rng.normal(0.0, 1.0, (len(times), 6)) * np.asarray(self.spec.gauge_noise)
+        return out + np.asarray(self.spec.gauge_offset) + noise

@@ -1,0 +1,162 @@
+"""One contact solve for an indenter pose: the wrench, and on request the fields.
+
+Computes only what is asked: the normal problem is solved on the box where the
+indenter can touch (contact needs h < d); the tangential problem only when there
+is shear or twist; the full-sensor displacement fields (for optics and markers)
+only when ``fields`` names them.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from rig.sim.contact import Pose
+from rig.sim.tactile.elastomer import Elastomer, PhysicsInputError
+from rig.sim.tactile.indenters import Indenter
+from rig.sim.tactile.kernels import kernels_for
+from rig.sim.tactile.normal_contact import NormalSolution, solve_normal
+from rig.sim.tactile.tangential_contact import TangentialSolution, solve_tangential
+
+
+@dataclass(frozen=True)
+class SensorGeometry:
+    """The gel pad seen by the camera, and where the gauge measures moments."""
+
+    width_mm: float = 16.0
+    height_mm: float = 16.0
+    cells: int = 128  # mechanics grid cells across the longer side
+    gauge_lever_mm: float = 25.0  # gauge origin above the gel surface, on the indenter axis
+
+    @property
+    def dx_mm(self) -> float:
+        return max(self.width_mm, self.height_mm) / self.cells
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return round(self.height_mm / self.dx_mm), round(self.width_mm / self.dx_mm)
+
+
+@dataclass
+class ContactResult:
+    wrench: np.ndarray  # (6,) load on the gel: N and N·mm about the gauge origin
+    normal: NormalSolution | None  # on the crop
+    tangential: TangentialSolution | None
+    crop: tuple[slice, slice] | None
+    fields: dict[str, np.ndarray] = field(default_factory=dict)  # full sensor grid, mm
+    solve_ms: float = 0.0
+
+    @property
+    def in_contact(self) -> bool:
+        return self.normal is not None and self.normal.force_N > 0
+
+
+def _round_up(n: int, multiple: int = 8) -> int:
+    return -(-n // multiple) * multiple
+
+
+class TactileContact:
+    def __init__(self, indenter: Indenter, gel: Elastomer | None = None,
+                 geometry: SensorGeometry | None = None, *, tol: float = 1e-3, tangential_tol: float = 1e-4):
+        self.indenter = indenter
+        self.gel = gel or Elastomer()
+        self.geometry = geometry or SensorGeometry()
+        self.tol = tol
+        self.tangential_tol = tangential_tol
+        ny, nx = self.geometry.shape
+        dx = self.geometry.dx_mm
+        xs = (np.arange(nx) - (nx - 1) / 2) * dx
+        ys = ((ny - 1) / 2 - np.arange(ny)) * dx  # row 0 is the top edge (+y), as in an image
+        self.X, self.Y = np.meshgrid(xs, ys)
+
+    def _crop(self, interference: np.ndarray) -> tuple[slice, slice]:
+        rows = np.nonzero(interference.any(axis=1))[0]
+        cols = np.nonzero(interference.any(axis=0))[0]
+        ny, nx = interference.shape
+        sl = []
+        for idx, n in ((rows, ny), (cols, nx)):
+            lo, hi = max(0, idx[0] - 2), min(n, idx[-1] + 3)
+            size = min(n, _round_up(hi - lo))
+            lo = max(0, min(lo, n - size))
+            sl.append(slice(lo, lo + size))
+        return sl[0], sl[1]
+
+    def solve(self, pose: Pose, *, shift_mm: tuple[float, float] = (0.0, 0.0), twist_rad: float = 0.0,
+              fields: frozenset[str] | set[str] = frozenset(), p0: np.ndarray | None = None,
+              q0=None) -> ContactResult:
+        """Solve at ``pose`` with the tangential motion since contact began.
+
+        ``fields``: any of "uz" (surface sink), "uxy" (tangential displacement).
+        Raises PhysicsInputError for a depth that reaches the rigid backing.
+        """
+        t0 = time.perf_counter()
+        for name, value in (("x", pose.x_mm), ("y", pose.y_mm), ("z", pose.z_mm), ("theta", pose.theta_deg)):
+            if not math.isfinite(value):
+                raise PhysicsInputError(f"pose {name} must be finite, got {value}")
+        d = pose.depth_mm
+        if d >= self.gel.thickness_mm:
+            raise PhysicsInputError(f"indentation {d:.3f} mm reaches the gel thickness {self.gel.thickness_mm:.3f} mm: "
+                                    "the indenter would touch the rigid backing")
+        dx = self.geometry.dx_mm
+        ny, nx = self.X.shape
+        out = ContactResult(np.zeros(6), None, None, None)
+        if d <= 0:
+            zero = np.zeros((ny, nx))
+            out.fields = {name: zero for name in fields if name == "uz"}
+            if "uxy" in fields:
+                out.fields["ux"] = out.fields["uy"] = zero
+            return out
+        h = self.indenter.separation_at(self.X, self.Y, pose.x_mm, pose.y_mm, pose.theta_deg)
+        interference = h < d
+        if not interference.any():
+            out.solve_ms = (time.perf_counter() - t0) * 1e3
+            return self._with_fields(out, fields)
+        crop = self._crop(interference)
+        hc = h[crop]
+        Xc, Yc = self.X[crop], self.Y[crop]
+        k = kernels_for(hc.shape[0], hc.shape[1], dx, self.gel)
+        p_init = p0 if p0 is not None and p0.shape == hc.shape else None
+        normal = solve_normal(k, hc, d, tol=self.tol, p0=p_init)
+        tangential = None
+        if (shift_mm != (0.0, 0.0) or twist_rad != 0.0) and normal.force_N > 0:
+            q_init = q0 if q0 is not None and q0[0].shape == hc.shape else None
+            tangential = solve_tangential(k, normal.pressure_MPa, Xc, Yc, mu=self.gel.friction, shift_mm=shift_mm,
+                                          twist_rad=twist_rad, center_mm=(pose.x_mm, pose.y_mm),
+                                          tol=self.tangential_tol, q0=q_init)
+        cell = dx * dx
+        p = normal.pressure_MPa
+        fz = normal.force_N
+        mx = float(np.sum((Yc - pose.y_mm) * p)) * cell
+        my = -float(np.sum((Xc - pose.x_mm) * p)) * cell
+        fx = fy = mz = 0.0
+        if tangential is not None:
+            fx, fy, mz = tangential.fx_N, tangential.fy_N, tangential.mz_Nmm
+        lever = self.geometry.gauge_lever_mm
+        out.wrench = np.array([fx, fy, fz, mx + lever * fy, my - lever * fx, mz])
+        out.normal, out.tangential, out.crop = normal, tangential, crop
+        out = self._with_fields(out, fields)
+        out.solve_ms = (time.perf_counter() - t0) * 1e3
+        return out
+
+    def _with_fields(self, out: ContactResult, fields) -> ContactResult:
+        ny, nx = self.X.shape
+        if not fields:
+            return out
+        full = kernels_for(ny, nx, self.geometry.dx_mm, self.gel)
+        if "uz" in fields:
+            p = np.zeros((ny, nx))
+            if out.normal is not None:
+                p[out.crop] = out.normal.pressure_MPa
+            out.fields["uz"] = full.normal_displacement(p) if p.any() else p
+        if "uxy" in fields:
+            qx, qy = np.zeros((ny, nx)), np.zeros((ny, nx))
+            if out.tangential is not None:
+                qx[out.crop], qy[out.crop] = out.tangential.qx_MPa, out.tangential.qy_MPa
+            if qx.any() or qy.any():
+                out.fields["ux"], out.fields["uy"] = full.tangential_displacement(qx, qy)
+            else:
+                out.fields["ux"], out.fields["uy"] = qx, qy
+        return out

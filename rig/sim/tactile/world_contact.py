@@ -1,0 +1,88 @@
+"""The elastomer as the simulated rig's physics: pose → wrench, with friction history.
+
+Tangential load depends on the motion since contact began (the anchor). When the
+contact slides fully, the anchor follows, so that reversing the motion unloads at
+once (gross slip, as on a real gel). Results are cached on the pose quantised to
+``quantum_mm`` / ``quantum_deg``: a slow protocol asks for the same pose many times.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+
+import numpy as np
+
+from rig.sim.contact import Pose
+from rig.sim.tactile.contact import ContactResult, SensorGeometry, TactileContact
+from rig.sim.tactile.elastomer import Elastomer, PhysicsInputError
+from rig.sim.tactile.indenters import Indenter, get_indenter
+
+CRUSHED_FZ_N = 1.0e4  # the indenter is on the rigid backing: the gauge saturates
+
+
+class ElastomerContact:
+    def __init__(self, indenter: Indenter | str = "sphere10mm", gel: Elastomer | None = None,
+                 geometry: SensorGeometry | None = None, *, quantum_mm: float = 0.5e-3, quantum_deg: float = 0.005,
+                 tol: float = 1e-3, tangential_tol: float = 1e-3):
+        indenter = get_indenter(indenter) if isinstance(indenter, str) else indenter
+        # A live gauge needs low latency more than the last 0.1 % (see docs/simulator.md).
+        self.solver = TactileContact(indenter, gel, geometry, tol=tol, tangential_tol=tangential_tol)
+        self.quantum_mm, self.quantum_deg = quantum_mm, quantum_deg
+        self._anchor: tuple[float, float, float] | None = None
+        self._cache_key = None
+        self._cache: ContactResult | None = None
+        self._lock = threading.Lock()
+        self.solves = 0
+
+    @property
+    def indenter(self) -> Indenter:
+        return self.solver.indenter
+
+    def _key(self, pose: Pose, fields) -> tuple:
+        q, qd = self.quantum_mm, self.quantum_deg
+        return (round(pose.x_mm / q), round(pose.y_mm / q), round(pose.z_mm / q), round(pose.theta_deg / qd),
+                self._anchor, frozenset(fields))
+
+    def solve(self, pose: Pose, fields=frozenset()) -> ContactResult:
+        """Full result at ``pose`` (with the fields asked for), advancing the friction history."""
+        with self._lock:
+            if pose.depth_mm <= 0:
+                self._anchor = None
+            elif self._anchor is None:
+                self._anchor = (pose.x_mm, pose.y_mm, pose.theta_deg)
+            key = self._key(pose, fields)
+            if key == self._cache_key and self._cache is not None:
+                return self._cache
+            shift, twist = (0.0, 0.0), 0.0
+            if self._anchor is not None:
+                ax, ay, at = self._anchor
+                shift, twist = (pose.x_mm - ax, pose.y_mm - ay), math.radians(pose.theta_deg - at)
+            prev = self._cache if self._cache is not None and self._cache.normal is not None else None
+            try:
+                result = self.solver.solve(
+                    pose, shift_mm=shift, twist_rad=twist, fields=fields,
+                    p0=prev.normal.pressure_MPa if prev else None,
+                    q0=(prev.tangential.qx_MPa, prev.tangential.qy_MPa) if prev and prev.tangential else None)
+            except PhysicsInputError:
+                result = ContactResult(np.array([0.0, 0.0, CRUSHED_FZ_N, 0.0, 0.0, 0.0]), None, None, None)
+            self.solves += 1
+            if result.tangential is not None and result.tangential.stick_fraction == 0.0:
+                self._follow_slip(pose, result)
+            self._cache_key, self._cache = self._key(pose, fields), result
+            return result
+
+    def _follow_slip(self, pose: Pose, result: ContactResult) -> None:
+        """Full slip: move the anchor so the solved state is the onset of sliding."""
+        t, n = result.tangential, result.normal
+        w = n.pressure_MPa
+        total = float(w.sum())
+        ux = float((t.ux_mm * w).sum()) / total
+        uy = float((t.uy_mm * w).sum()) / total
+        Xc, Yc = self.solver.X[result.crop] - pose.x_mm, self.solver.Y[result.crop] - pose.y_mm
+        r2 = float((w * (Xc**2 + Yc**2)).sum())
+        rot = float((w * (Xc * t.uy_mm - Yc * t.ux_mm)).sum()) / r2 if r2 > 0 else 0.0
+        self._anchor = (pose.x_mm - ux, pose.y_mm - uy, pose.theta_deg - math.degrees(rot))
+
+    def wrench(self, pose: Pose) -> np.ndarray:
+        return self.solve(pose).wrench.copy()
