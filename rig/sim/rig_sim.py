@@ -28,11 +28,17 @@ THETA_DEVICE_ID = 1
 
 class SimulatedRig:
     def __init__(self, clock: Clock | None = None, *, transport: str = "pty", gauge: str = "ft300",
-                 spec: WorldSpec | None = None, seed: int = 0):
+                 spec: WorldSpec | None = None, seed: int = 0, indenter: str = "sphere10mm",
+                 sensor_kind: str = "rgb", contact=None):
         if gauge not in ("ft300", "m8128"):
             raise ValueError(f"simulated gauge must be 'ft300' or 'm8128', got {gauge!r}")
         self.clock = clock or SystemClock()
-        self.world = SimWorld(self.clock, spec, seed=seed)
+        if contact is None:
+            from rig.sim.tactile.world_contact import ElastomerContact
+
+            contact = ElastomerContact(indenter)
+        self.world = SimWorld(self.clock, spec, contact=contact, seed=seed)
+        self.sensor_kind = sensor_kind
         self.gauge_kind = gauge
         stages = self.world.stages
         self.zaber = ZaberChainSim(self.clock, {
@@ -78,7 +84,7 @@ class SimulatedRig:
         else:
             lines += ['[gauge]', 'driver = "m8128"', f'port = "{self.servers["gauge"].url}"', 'mode = "stream"', '']
         if with_camera:
-            lines += ['[camera]', 'driver = "sim"', 'width = 320', 'height = 240', 'fps = 25.0',
+            lines += ['[camera]', 'driver = "sim"', 'width = 256', 'height = 256', 'fps = 25.0',
                       'discard_frames = 2', '']
         lines += ['[safety]', 'max_force_N = [10.0, 10.0, 40.0]', 'max_torque_Nmm = [300.0, 300.0, 200.0]', '']
         return "\n".join(lines)
@@ -86,8 +92,8 @@ class SimulatedRig:
     def config(self, *, with_camera: bool = True) -> RigConfig:
         return parse_config(self.config_toml(with_camera=with_camera), "<built-in simulated rig>")
 
-    def camera_source(self, *, fps: float = 25.0, height: int = 240, width: int = 320) -> SimCameraSource:
-        return SimCameraSource(self.world, self.clock, fps=fps, height=height, width=width)
+    def camera_source(self, *, fps: float = 25.0, height: int = 256, width: int = 256) -> SimCameraSource:
+        return SimCameraSource(self.world, self.clock, fps=fps, height=height, width=width, kind=self.sensor_kind)
 
     def close(self) -> None:
         for server in self.servers.values():

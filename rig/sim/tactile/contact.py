@@ -26,8 +26,8 @@ from rig.sim.tactile.tangential_contact import TangentialSolution, solve_tangent
 class SensorGeometry:
     """The gel pad seen by the camera, and where the gauge measures moments."""
 
-    width_mm: float = 16.0
-    height_mm: float = 16.0
+    width_mm: float = 14.0  # the GelSight Mini's shorter side, square as the paper's images
+    height_mm: float = 14.0
     cells: int = 128  # mechanics grid cells across the longer side
     gauge_lever_mm: float = 25.0  # gauge origin above the gel surface, on the indenter axis
 
@@ -140,6 +140,10 @@ class TactileContact:
         out = self._with_fields(out, fields)
         out.solve_ms = (time.perf_counter() - t0) * 1e3
         return out
+
+    def add_fields(self, out: ContactResult, fields) -> ContactResult:
+        """Compute further displacement fields for an existing solve."""
+        return self._with_fields(out, fields)
 
     def _with_fields(self, out: ContactResult, fields) -> ContactResult:
         ny, nx = self.X.shape

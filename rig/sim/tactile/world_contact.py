@@ -39,10 +39,10 @@ class ElastomerContact:
     def indenter(self) -> Indenter:
         return self.solver.indenter
 
-    def _key(self, pose: Pose, fields) -> tuple:
+    def _key(self, pose: Pose) -> tuple:
         q, qd = self.quantum_mm, self.quantum_deg
         return (round(pose.x_mm / q), round(pose.y_mm / q), round(pose.z_mm / q), round(pose.theta_deg / qd),
-                self._anchor, frozenset(fields))
+                self._anchor)
 
     def solve(self, pose: Pose, fields=frozenset()) -> ContactResult:
         """Full result at ``pose`` (with the fields asked for), advancing the friction history."""
@@ -51,8 +51,11 @@ class ElastomerContact:
                 self._anchor = None
             elif self._anchor is None:
                 self._anchor = (pose.x_mm, pose.y_mm, pose.theta_deg)
-            key = self._key(pose, fields)
+            key = self._key(pose)
             if key == self._cache_key and self._cache is not None:
+                missing = self._missing(self._cache, fields)
+                if missing:  # same contact, more asked of it: only the extra fields
+                    self.solver.add_fields(self._cache, missing)
                 return self._cache
             shift, twist = (0.0, 0.0), 0.0
             if self._anchor is not None:
@@ -69,8 +72,15 @@ class ElastomerContact:
             self.solves += 1
             if result.tangential is not None and result.tangential.stick_fraction == 0.0:
                 self._follow_slip(pose, result)
-            self._cache_key, self._cache = self._key(pose, fields), result
+            self._cache_key, self._cache = self._key(pose), result
             return result
+
+    @staticmethod
+    def _missing(result: ContactResult, fields) -> set[str]:
+        have = {"uz"} if "uz" in result.fields else set()
+        if "ux" in result.fields:
+            have.add("uxy")
+        return set(fields) - have
 
     def _follow_slip(self, pose: Pose, result: ContactResult) -> None:
         """Full slip: move the anchor so the solved state is the onset of sliding."""
