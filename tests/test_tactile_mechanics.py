@@ -1,0 +1,209 @@
+"""Contact mechanics against closed forms, on stiff and extreme cases, and for consistency."""
+
+import math
+
+import numpy as np
+import pytest
+
+from rig.sim.contact import Pose
+from rig.sim.tactile.contact import SensorGeometry, TactileContact
+from rig.sim.tactile.elastomer import Elastomer, PhysicsInputError
+from rig.sim.tactile.indenters import INDENTERS, get_indenter
+from rig.sim.tactile.kernels import Kernels, cell_integrals, layer_factor
+from rig.sim.tactile.normal_contact import solve_normal
+from rig.sim.tactile.tangential_contact import solve_tangential
+
+HALF_SPACE = Elastomer(E_MPa=1.0, nu=0.5, thickness_mm=math.inf, friction=0.5)
+
+
+def grid(n, extent_mm):
+    dx = extent_mm / n
+    x = (np.arange(n) - (n - 1) / 2) * dx
+    X, Y = np.meshgrid(x, x)
+    return X, Y, dx
+
+
+def hertz(R, d, gel=HALF_SPACE):
+    a = math.sqrt(R * d)
+    F = 4 / 3 * gel.E_star_MPa * math.sqrt(R) * d**1.5
+    return F, a, 3 * F / (2 * math.pi * a * a)
+
+
+def test_cell_integrals_match_quadrature():
+    I1, Ixx, Iyy, Ixy = cell_integrals(6, 6, 0.5, 0.5)
+    assert I1[0, 0] == pytest.approx(4 * 0.5 * math.asinh(1.0))  # ∬ 1/r over a square about its centre
+    s = (np.arange(300) + 0.5) / 300 * 0.5 - 0.25
+    for iy, ix in [(0, 2), (1, 3), (11, 10)]:
+        X = (ix if ix < 6 else ix - 12) * 0.5
+        Y = (iy if iy < 6 else iy - 12) * 0.5
+        xx, yy = np.meshgrid(X - s, Y - s)
+        r = np.hypot(xx, yy)
+        area = 0.25
+        assert I1[iy, ix] == pytest.approx((1 / r).mean() * area, rel=1e-4)
+        assert Ixx[iy, ix] == pytest.approx((xx**2 / r**3).mean() * area, rel=1e-4)
+        assert Ixy[iy, ix] == pytest.approx((xx * yy / r**3).mean() * area, rel=1e-4, abs=1e-9)
+
+
+def test_layer_factor_limits():
+    assert layer_factor(np.array([50.0]), 0.3)[0] == pytest.approx(1.0)  # thick: half-space
+    qh, nu = 1e-3, 0.3
+    assert layer_factor(np.array([qh]), nu)[0] == pytest.approx(qh * (1 - 2 * nu) / (2 * (1 - nu) ** 2), rel=1e-3)
+    assert layer_factor(np.array([1e-3]), 0.5)[0] == pytest.approx(0.0, abs=1e-6)  # incompressible thin layer
+
+
+def test_thin_layer_is_oedometric():
+    """A uniform pressure on a thin bonded layer sinks it by h·p/M, M the oedometric modulus."""
+    gel = Elastomer(E_MPa=1.0, nu=0.3, thickness_mm=0.5)
+    k = Kernels(64, 64, 0.1, gel)  # a 6.4 mm pad, 13 thicknesses wide
+    u = k.normal_displacement(np.ones((64, 64)))
+    M = gel.E_MPa * (1 - gel.nu) / ((1 + gel.nu) * (1 - 2 * gel.nu))
+    assert u[32, 32] == pytest.approx(0.5 / M, rel=0.01)
+    assert u[0, 0] == pytest.approx(u[32, 32] / 2, rel=0.25)  # a corner carries about half
+
+
+def test_thick_layer_tends_to_the_half_space():
+    R, d = 5.0, 0.2
+    F, a, _ = hertz(R, d)
+    X, Y, dx = grid(64, 3 * a)
+    thick = Elastomer(E_MPa=1.0, nu=0.5, thickness_mm=200.0)
+    s = solve_normal(Kernels(64, 64, dx, thick), (X**2 + Y**2) / (2 * R), d, tol=1e-5)
+    assert s.force_N == pytest.approx(F, rel=0.01)
+    thin = Elastomer(E_MPa=1.0, nu=0.5, thickness_mm=1.0)
+    s_thin = solve_normal(Kernels(64, 64, dx, thin), (X**2 + Y**2) / (2 * R), d, tol=1e-5)
+    assert s_thin.force_N > 1.2 * F  # a layer as thin as the contact is much stiffer
+
+
+@pytest.mark.parametrize("n", [64, 128])
+def test_hertz_force_radius_and_peak_pressure(n):
+    R, d = 5.0, 0.2
+    F, a, p0 = hertz(R, d)
+    X, Y, dx = grid(n, 3 * a)
+    s = solve_normal(Kernels(n, n, dx, HALF_SPACE), (X**2 + Y**2) / (2 * R), d, tol=1e-4)
+    assert s.converged
+    assert s.force_N == pytest.approx(F, rel=0.01)
+    assert math.sqrt(s.contact_area_mm2 / math.pi) == pytest.approx(a, rel=0.02)
+    assert s.pressure_MPa.max() == pytest.approx(p0, rel=0.02)
+
+
+def test_sphere_force_exponent_and_radius_scaling():
+    tc = TactileContact(get_indenter("sphere10mm"), Elastomer(E_MPa=0.3, nu=0.49, thickness_mm=math.inf),
+                        SensorGeometry(width_mm=10, height_mm=10, cells=128), tol=1e-5)
+    depths = np.array([0.1, 0.2, 0.3, 0.4])
+    sols = [tc.solve(Pose(0, 0, -d, 0)).normal for d in depths]
+    F = np.array([s.force_N for s in sols])
+    a = np.sqrt(np.array([s.contact_area_mm2 for s in sols]) / math.pi)
+    assert np.polyfit(np.log(depths), np.log(F), 1)[0] == pytest.approx(1.5, abs=0.05)
+    assert np.polyfit(np.log(depths), np.log(a), 1)[0] == pytest.approx(0.5, abs=0.05)
+
+
+def test_flat_punch_force():
+    a, d = 1.0, 0.05
+    X, Y, dx = grid(128, 2.4 * a)
+    h = np.where(np.hypot(X, Y) <= a, 0.0, 50.0)
+    s = solve_normal(Kernels(128, 128, dx, HALF_SPACE), h, d, tol=1e-5)
+    assert s.converged
+    assert s.force_N == pytest.approx(2 * a * HALF_SPACE.E_star_MPa * d, rel=0.02)
+
+
+@pytest.mark.parametrize("ratio", [0.3, 0.7, 0.95])
+def test_cattaneo_mindlin_partial_slip(ratio):
+    R, d, n = 5.0, 0.2, 64
+    _, a, _ = hertz(R, d)
+    X, Y, dx = grid(n, 2.6 * a)
+    k = Kernels(n, n, dx, HALF_SPACE)
+    normal = solve_normal(k, (X**2 + Y**2) / (2 * R), d, tol=1e-6)
+    P, mu, G, nu = normal.force_N, HALF_SPACE.friction, HALF_SPACE.G_MPa, HALF_SPACE.nu
+    delta = 3 * mu * P * (2 - nu) / (16 * G * a) * (1 - (1 - ratio) ** (2 / 3))
+    t = solve_tangential(k, normal.pressure_MPa, X, Y, mu=mu, shift_mm=(delta, 0.0), tol=1e-5)
+    assert t.converged
+    assert t.fx_N == pytest.approx(ratio * mu * P, rel=0.01)
+    stick_radius = math.sqrt(t.stick_fraction * normal.contact_area_mm2 / math.pi)
+    assert stick_radius == pytest.approx(a * (1 - ratio) ** (1 / 3), abs=2 * dx)
+    assert abs(t.fy_N) < 1e-6 * P
+
+
+def test_full_slip_and_45_degree_twist():
+    R, d, n = 5.0, 0.2, 64
+    _, a, _ = hertz(R, d)
+    X, Y, dx = grid(n, 2.6 * a)
+    k = Kernels(n, n, dx, HALF_SPACE)
+    normal = solve_normal(k, (X**2 + Y**2) / (2 * R), d, tol=1e-6)
+    P, mu = normal.force_N, HALF_SPACE.friction
+    slide = solve_tangential(k, normal.pressure_MPa, X, Y, mu=mu, shift_mm=(0.0, -3.0))
+    assert slide.fy_N == pytest.approx(-mu * P, rel=1e-3) and slide.stick_fraction == 0.0
+    twist = solve_tangential(k, normal.pressure_MPa, X, Y, mu=mu, twist_rad=math.radians(45))
+    assert twist.mz_Nmm == pytest.approx(3 * math.pi / 16 * mu * P * a, rel=0.01)  # torsional full slip
+
+
+GEL = Elastomer()
+
+
+@pytest.mark.parametrize("E_MPa", [0.05, 1.0, 2e5])  # 0.05 MPa gel to 200 GPa steel
+def test_stiffness_range_is_finite_and_linear_in_modulus(E_MPa):
+    tc = TactileContact(get_indenter("sphere10mm"), Elastomer(E_MPa=E_MPa, nu=0.45, thickness_mm=3.0))
+    r = tc.solve(Pose(0, 0, -0.4, 0), shift_mm=(0.1, 0.0), twist_rad=0.01)
+    ref = TactileContact(get_indenter("sphere10mm"), Elastomer(E_MPa=1.0, nu=0.45, thickness_mm=3.0)).solve(Pose(0, 0, -0.4, 0))
+    assert np.all(np.isfinite(r.wrench)) and r.normal.converged and r.tangential.converged
+    assert r.wrench[2] == pytest.approx(ref.wrench[2] * E_MPa, rel=1e-3)
+
+
+@pytest.mark.parametrize("name", sorted(INDENTERS))
+def test_every_indenter_force_monotone_in_depth_and_converged(name):
+    tc = TactileContact(get_indenter(name), GEL)
+    forces = []
+    for depth in (0.1, 0.4, 0.8, 1.6, 2.9):  # up to just short of the 3 mm gel
+        r = tc.solve(Pose(0.0, 0.0, -depth, 15.0))
+        assert np.all(np.isfinite(r.wrench)) and r.normal.converged, (name, depth, r.normal.residual)
+        forces.append(r.wrench[2])
+    assert all(b > a for a, b in zip(forces, forces[1:])), (name, forces)
+
+
+def test_no_contact_and_near_miss_are_zero():
+    tc = TactileContact(get_indenter("sphere10mm"), GEL)
+    for pose in (Pose(0, 0, 2.0, 0), Pose(0, 0, 0.0, 0), Pose(20.0, 0, -1.0, 0)):  # above, touching, off the pad
+        r = tc.solve(pose, shift_mm=(0.5, 0), fields={"uz", "uxy"})
+        assert np.all(r.wrench == 0) and not r.in_contact
+        assert not r.fields["uz"].any() and not r.fields["ux"].any()
+
+
+def test_indenter_larger_than_sensor():
+    r = TactileContact(get_indenter("woven"), GEL).solve(Pose(0, 0, -0.5, 0), fields={"uz"})
+    assert r.normal.converged and np.all(np.isfinite(r.fields["uz"]))
+    assert r.normal.contact.mean() > 0.3  # the board touches across the whole pad
+
+
+def test_shear_beyond_friction_is_full_slip_and_reverses():
+    tc = TactileContact(get_indenter("sphere10mm"), GEL)
+    # Slip starts at δ* = 3μP(2−ν)/(16Ga) ≈ 3 mm on this soft gel: slide 5 mm.
+    fwd = tc.solve(Pose(0.0, 0, -0.8, 0), shift_mm=(5.0, 0.0))
+    back = tc.solve(Pose(0.0, 0, -0.8, 0), shift_mm=(-5.0, 0.0))
+    assert fwd.wrench[0] == pytest.approx(GEL.friction * fwd.wrench[2], rel=1e-3)
+    assert back.wrench[0] == pytest.approx(-GEL.friction * back.wrench[2], rel=1e-3)
+    assert fwd.tangential.stick_fraction == 0.0
+
+
+def test_twist_produces_mz_with_the_sign_of_the_twist():
+    tc = TactileContact(get_indenter("square"), GEL)
+    plus = tc.solve(Pose(0, 0, -0.4, 5.0), twist_rad=math.radians(5.0))
+    minus = tc.solve(Pose(0, 0, -0.4, -5.0), twist_rad=math.radians(-5.0))
+    assert plus.wrench[5] > 0 > minus.wrench[5]
+    assert plus.wrench[5] == pytest.approx(-minus.wrench[5], rel=1e-2)
+
+
+@pytest.mark.parametrize("make, words", [
+    (lambda: Elastomer(E_MPa=-1.0), "E_MPa"),
+    (lambda: Elastomer(E_MPa=float("nan")), "E_MPa"),
+    (lambda: Elastomer(nu=0.6), "Poisson"),
+    (lambda: Elastomer(thickness_mm=0.0), "thickness"),
+    (lambda: Elastomer(friction=-0.1), "friction"),
+    (lambda: TactileContact(get_indenter("sphere10mm"), GEL).solve(Pose(0, 0, -3.0, 0)), "rigid backing"),
+    (lambda: TactileContact(get_indenter("sphere10mm"), GEL).solve(Pose(float("nan"), 0, -1.0, 0)), "finite"),
+])
+def test_meaningless_inputs_are_clear_errors(make, words):
+    with pytest.raises(PhysicsInputError, match=words):
+        make()
+
+
+def test_unknown_indenter_names_the_choices():
+    with pytest.raises(KeyError, match="sphere10mm"):
+        get_indenter("teapot")
