@@ -76,26 +76,44 @@ def layer_factor(qh: np.ndarray, nu: float) -> np.ndarray:
     return s
 
 
+# Hankel-transform quadrature: the integrands decay like exp(−2x), so x ≤ 20 suffices;
+# a 0.01 step resolves J(xρ) up to ρ = 60 with 10 points a period; the tables are
+# smooth in ρ on the scale of 1, so a 0.05 step interpolates them to ~1e-4.
+_X = np.linspace(0.0, 20.0, 2001)
+_W = np.full_like(_X, _X[1] - _X[0])
+_W[0] = _W[-1] = _W[0] / 2
+_RHO = np.linspace(0.0, 60.0, 1201)
+
+
+def _bessel_j0_j2():
+    from scipy.special import j0, j1
+
+    arg = np.outer(_RHO, _X)
+    J0 = j0(arg)
+    safe = np.where(arg > 1e-8, arg, 1.0)
+    J2 = np.where(arg > 1e-8, 2.0 * j1(arg) / safe - J0, 0.0)  # recurrence: J2 = 2J1/z − J0
+    return J0, J2
+
+
+_BESSEL = None
+
+
+def _bessel():
+    global _BESSEL
+    if _BESSEL is None:
+        _BESSEL = _bessel_j0_j2()
+    return _BESSEL
+
+
 @functools.lru_cache(maxsize=8)
 def _layer_correction_table(nu: float) -> tuple[np.ndarray, np.ndarray]:
     """g(ρ) = ∫₀^∞ (S(x) − 1)·J₀(xρ) dx on ρ = r/h ∈ [0, 60], by quadrature.
 
-    S − 1 decays exponentially in x, so x ≤ 30 suffices; the grid resolves J₀'s
-    oscillation up to ρ = 60 with 10 points a period. Beyond ρ = 60 the layer
-    no longer carries load and g = −1/ρ cancels the half-space tail.
+    Beyond ρ = 60 the layer no longer carries load and g = −1/ρ cancels the
+    half-space tail.
     """
-    from scipy.special import j0
-
-    x = np.linspace(0.0, 30.0, 3001)
-    w = np.full_like(x, x[1] - x[0])
-    w[0] = w[-1] = w[0] / 2  # trapezoid weights
-    f = (layer_factor(x, nu) - 1.0) * w
-    rho = np.linspace(0.0, 60.0, 3001)
-    g = np.empty_like(rho)
-    for i in range(0, rho.size, 500):
-        chunk = rho[i:i + 500]
-        g[i:i + 500] = j0(np.outer(chunk, x)) @ f
-    return rho, g
+    J0, _ = _bessel()
+    return _RHO, J0 @ ((layer_factor(_X, nu) - 1.0) * _W)
 
 
 def layer_correction(r_mm: np.ndarray, thickness_mm: float, nu: float) -> np.ndarray:
@@ -121,21 +139,16 @@ def _tangential_layer_tables(nu: float) -> tuple[np.ndarray, np.ndarray, np.ndar
     L by tanh(qh/(1−ν)), which has the exact thick (1) and thin (simple shear h/G)
     limits. With x = qh: c0 = [(1−ν)(F_L − 1) + (F_T − 1)]/2, c2 = [(1−ν)(F_L − 1) − (F_T − 1)]/2.
     """
-    from scipy.special import j0, jv
+    J0, J2 = _bessel()
+    dl = (1 - nu) * (np.tanh(_X / (1 - nu)) - 1.0)
+    dt = np.tanh(_X) - 1.0
+    return _RHO, J0 @ ((dl + dt) / 2 * _W), J2 @ ((dl - dt) / 2 * _W)
 
-    x = np.linspace(0.0, 30.0, 3001)
-    w = np.full_like(x, x[1] - x[0])
-    w[0] = w[-1] = w[0] / 2
-    dl = (1 - nu) * (np.tanh(x / (1 - nu)) - 1.0)
-    dt = np.tanh(x) - 1.0
-    c0, c2 = (dl + dt) / 2 * w, (dl - dt) / 2 * w
-    rho = np.linspace(0.0, 60.0, 3001)
-    g0, g2 = np.empty_like(rho), np.empty_like(rho)
-    for i in range(0, rho.size, 500):
-        arg = np.outer(rho[i:i + 500], x)
-        g0[i:i + 500] = j0(arg) @ c0
-        g2[i:i + 500] = jv(2, arg) @ c2
-    return rho, g0, g2
+
+def warm_tables(nu: float) -> None:
+    """Build the layer tables for ``nu`` now (a simulator calls this off its hot path)."""
+    _layer_correction_table(nu)
+    _tangential_layer_tables(nu)
 
 
 def tangential_layer_correction(X: np.ndarray, Y: np.ndarray, thickness_mm: float, nu: float):

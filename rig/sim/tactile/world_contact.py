@@ -34,6 +34,11 @@ class ElastomerContact:
         self._cache: ContactResult | None = None
         self._lock = threading.Lock()
         self.solves = 0
+        if math.isfinite(self.solver.gel.thickness_mm):
+            # ~0.5 s of Bessel quadrature, done before the first sample needs it.
+            from rig.sim.tactile.kernels import warm_tables
+
+            threading.Thread(target=warm_tables, args=(self.solver.gel.nu,), daemon=True).start()
 
     @property
     def indenter(self) -> Indenter:
