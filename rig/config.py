@@ -50,6 +50,7 @@ class GaugeConfig:
     rate_hz: int = 100  # m8128 sampling rate
     timeout_s: float = 0.5
     retries: int = 2
+    fresh_after_s: float = 0.05  # bound on the stream's measurement-to-arrival latency, s
 
 
 @dataclass(frozen=True)
@@ -192,6 +193,7 @@ def _gauge(path: str, data: Any) -> GaugeConfig:
         rate_hz=t.get("rate_hz", int, 100, low=1, high=2000),
         timeout_s=t.get("timeout_s", float, 0.5, positive=True),
         retries=t.get("retries", int, 2, low=0, high=10),
+        fresh_after_s=t.get("fresh_after_s", float, 0.05, low=0.0, high=10.0),
     )
     t.done()
     return cfg

@@ -91,14 +91,8 @@ class Rig:
             if name not in self.axes:
                 raise RigError(f"axis {name!r} is not open")
 
-    def move(self, targets: dict[str, float], speed: float | dict[str, float] | None = None,
-             *, timeout_s: float | None = None) -> dict[str, float]:
-        """Move the given axes together to absolute ``targets``; returns the final positions.
-
-        Every target and speed is checked before anything moves (SoftLimitError,
-        SafetyError). Raises ForceLimitExceeded, DeviceFault, DeviceTimeout after
-        stopping all axes.
-        """
+    def check_targets(self, targets: dict[str, float], speed: float | dict[str, float] | None = None) -> dict[str, float]:
+        """Soft-limit and speed checks for a move; returns the per-axis speeds. Moves nothing."""
         self._require_armed(targets)
         speeds = {}
         for name, target in targets.items():
@@ -107,13 +101,54 @@ class Rig:
             s = speed.get(name, cfg.jog_speed) if isinstance(speed, dict) else (cfg.jog_speed if speed is None else speed)
             check_speed(cfg, s)
             speeds[name] = s
+        return speeds
+
+    def start_move(self, targets: dict[str, float], speed: float | dict[str, float] | None = None) -> ForceGuard:
+        """Check, then start moving the axes to ``targets``; returns the guard to monitor with.
+
+        The caller must call ``monitor`` until the axes are idle (``move`` does).
+        """
+        speeds = self.check_targets(targets, speed)
         guard = self._guard_for(targets)
+        try:
+            for name, target in targets.items():
+                self.axes[name].move_to(target, speeds[name])
+        except BaseException:
+            self.stop_all()
+            raise
+        return guard
+
+    def monitor(self, names, guard: ForceGuard | None = None, what: str = "move") -> set[str]:
+        """One safety check: the wrench against the limits, the axes for faults.
+
+        Returns the axes still moving. Raises ForceLimitExceeded or DeviceFault (the
+        caller stops the rig).
+        """
+        (guard or self.guard).check(self.gauge.read())
+        moving = set()
+        for name in names:
+            axis = self.axes[name]
+            status = axis.status()
+            faults = axis.faults(status)
+            if faults:
+                raise DeviceFault(axis.label, what, status.warnings, ", ".join(faults))
+            if status.busy:
+                moving.add(name)
+        return moving
+
+    def move(self, targets: dict[str, float], speed: float | dict[str, float] | None = None,
+             *, timeout_s: float | None = None) -> dict[str, float]:
+        """Move the given axes together to absolute ``targets``; returns the final positions.
+
+        Every target and speed is checked before anything moves (SoftLimitError,
+        SafetyError). Raises ForceLimitExceeded, DeviceFault, DeviceTimeout after
+        stopping all axes.
+        """
+        speeds = self.check_targets(targets, speed)
         started = self.clock.now()
         try:
-            starts = {}
-            for name, target in targets.items():
-                starts[name] = self.axes[name].position()
-                self.axes[name].move_to(target, speeds[name])
+            starts = {name: self.axes[name].position() for name in targets}
+            guard = self.start_move(targets, speeds)
             if timeout_s is None:
                 timeout_s = 5.0 + 2.0 * max(abs(targets[n] - starts[n]) / speeds[n] for n in targets)
             self._wait(tuple(targets), started + timeout_s, f"move to {targets}", guard)
@@ -177,19 +212,7 @@ class Rig:
 
     def _wait(self, names: tuple[str, ...], deadline: float, what: str, guard: ForceGuard | None = None) -> None:
         poll_s = self.config.safety.poll_s
-        guard = guard or self.guard
-        while True:
-            guard.check(self.gauge.read())
-            busy = False
-            for name in names:
-                axis = self.axes[name]
-                status = axis.status()
-                faults = axis.faults(status)
-                if faults:
-                    raise DeviceFault(axis.label, what, status.warnings, ", ".join(faults))
-                busy |= status.busy
-            if not busy:
-                return
+        while self.monitor(names, guard, what):
             if self.clock.now() > deadline:
                 raise DeviceTimeout(", ".join(names), what, None, "motion did not finish in time")
             self.clock.sleep(poll_s)

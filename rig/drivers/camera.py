@@ -114,11 +114,22 @@ class Camera:
         self.error: Exception | None = None
         self.ended = False
         self._stop = threading.Event()
+        # A source with ``triggered = True`` (the simulated camera) makes a frame only
+        # when asked, as a hardware-triggered camera does; free-running ones ignore it.
+        self.triggered = bool(getattr(source, "triggered", False))
+        self._trigger = threading.Semaphore(discard_frames if self.triggered else 0)
         self._thread = threading.Thread(target=self._grab, name=f"grab-{name}", daemon=True)
         self._thread.start()
 
+    def trigger(self) -> None:
+        """Ask a triggered source for one frame; a no-op for free-running cameras."""
+        if self.triggered:
+            self._trigger.release()
+
     def _grab(self) -> None:
         while not self._stop.is_set():
+            if self.triggered and not self._trigger.acquire(timeout=0.1):
+                continue
             try:
                 ok, image = self.source.read()
             except Exception as exc:  # kept and raised to the reader; never swallowed
@@ -126,7 +137,8 @@ class Camera:
                     self.error = exc
                     self._cond.notify_all()
                 return
-            t = self.clock.now()
+            # Prefer the source's exposure time (the simulator knows it); else arrival.
+            t = getattr(self.source, "last_exposure_s", None) or self.clock.now()
             if not ok or image is None:
                 with self._cond:
                     self.ended = True

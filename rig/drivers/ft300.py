@@ -49,8 +49,8 @@ def encode_stream_frame(values: np.ndarray) -> bytes:
 
 class FT300(GaugeBase):
     def __init__(self, bus: ModbusBus, clock: Clock, *, name: str = "gauge", device_id: int = 9,
-                 buffer_size: int = 4096):
-        super().__init__(clock, buffer_size)
+                 buffer_size: int = 4096, fresh_after_s: float = 0.05):
+        super().__init__(clock, buffer_size, fresh_after_s=fresh_after_s)
         self.bus = bus
         self.name = name
         self.device_id = device_id

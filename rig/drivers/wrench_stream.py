@@ -102,6 +102,11 @@ class WrenchBuffer:
         with self._cond:
             return self._cond.wait_for(lambda: self.total - after_total >= n, timeout=timeout_s)
 
+    def wait_after(self, t_s: float, timeout_s: float) -> bool:
+        """Block (real time, bounded) until a sample stamped at or after ``t_s`` is here."""
+        with self._cond:
+            return self._cond.wait_for(lambda: bool(self._samples) and self._samples[-1].t_s >= t_s, timeout=timeout_s)
+
     def at(self, t_s: float) -> tuple[np.ndarray, float]:
         """Wrench interpolated at ``t_s`` and the distance (s) to the nearest sample."""
         with self._cond:
@@ -109,7 +114,8 @@ class WrenchBuffer:
         if not samples:
             raise LookupError("no samples")
         times = [s.t_s for s in samples]
-        i = bisect.bisect_left(times, t_s)
+        # bisect_right: among samples stamped exactly t_s (one burst), the newest wins.
+        i = bisect.bisect_right(times, t_s)
         if i == 0 or i == len(samples):
             s = samples[0] if i == 0 else samples[-1]
             return s.as_array(), abs(s.t_s - t_s)
@@ -169,8 +175,9 @@ class GaugeBase:
     name: str
     label: str
 
-    def __init__(self, clock: Clock, buffer_size: int = 4096, stale_after_s: float = 0.5):
+    def __init__(self, clock: Clock, buffer_size: int = 4096, stale_after_s: float = 0.5, fresh_after_s: float = 0.05):
         self.clock = clock
+        self.fresh_after_s = fresh_after_s  # bound on measurement-to-arrival latency
         self.bias = np.zeros(6)
         self.buffer = WrenchBuffer(buffer_size)
         self.stale_after_s = stale_after_s
@@ -218,19 +225,32 @@ class GaugeBase:
     def read_fresh(self) -> Wrench:
         """A sample measured after this call.
 
-        Frames arrive in bursts (USB latency timers, a simulator's tick), and a burst
-        may have been measured before the call even if it arrives after it. The
-        second burst after the call was started after the first one was delivered,
-        so its newest sample is fresh. Costs up to two sample periods.
+        A sample is stamped when it arrives; it was measured up to ``fresh_after_s``
+        earlier (USB latency timers, a simulator's physics). The first sample that
+        arrives that long after the call was measured after it.
         """
         if self._reader is None:
             return self.read()
-        for _ in range(2):
-            before = self.buffer.total
-            if not self.buffer.wait_new(before, 1, timeout_s=max(self.stale_after_s, 2.0)):
-                self._reader.check()
-                raise DeviceTimeout(self.label, "stream", None, "no stream sample arrived")
+        t = self.clock.now() + self.fresh_after_s
+        if not self.buffer.wait_after(t, timeout_s=5.0):
+            self._reader.check()
+            raise DeviceTimeout(self.label, "stream", None, "no stream sample arrived")
         return self.buffer.latest().minus(self.bias)
+
+    def sample_at(self, t_s: float, timeout_s: float = 2.0) -> tuple[np.ndarray, float]:
+        """The tared wrench interpolated at ``t_s`` and the skew (s) to the nearest sample.
+
+        Waits (bounded) until a sample stamped at or after ``t_s`` has arrived, so the
+        interpolation brackets the moment. Polled gauges read once, now.
+        """
+        if self._reader is None:
+            w = self.read()
+            return w.as_array(), abs(w.t_s - t_s)
+        if not self.buffer.wait_after(t_s + self.fresh_after_s, timeout_s):
+            self._reader.check()
+            raise DeviceTimeout(self.label, "stream", None, f"no sample after t = {t_s:.3f} s within {timeout_s} s")
+        values, skew = self.buffer.at(t_s)
+        return values - self.bias, skew
 
     def read_raw(self) -> Wrench:
         return self._raw_sample()

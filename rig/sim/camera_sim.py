@@ -16,7 +16,7 @@ class SimCameraSource:
     """A capture source (``read``/``release``) producing frames at ``fps`` of clock time."""
 
     def __init__(self, world: SimWorld, clock: Clock, *, fps: float = 25.0, height: int = 256, width: int = 256,
-                 kind: str = "rgb", noise_std: float = 1.0, seed: int = 0):
+                 kind: str = "rgb", noise_std: float = 1.0, seed: int = 0, triggered: bool = False):
         if height != width:
             raise ValueError(f"the simulated camera renders a square gel pad: width ({width}) must equal height ({height})")
         self.world = world
@@ -28,8 +28,11 @@ class SimCameraSource:
                                  geometry, seed=seed)
         self._next_t: float | None = None
         self._released = False
+        self.triggered = triggered  # render only when the Camera is triggered (acquisition)
+        self.last_exposure_s: float | None = None
 
     def render_now(self):
+        self.last_exposure_s = self.clock.now()
         contact = self.world.contact
         if not hasattr(contact, "solve"):
             return self.renderer.render({})
@@ -39,6 +42,8 @@ class SimCameraSource:
     def read(self):
         if self._released:
             return False, None
+        if self.triggered:
+            return True, self.render_now()
         now = self.clock.now()
         if self._next_t is None:
             self._next_t = now

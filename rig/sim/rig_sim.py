@@ -39,6 +39,11 @@ class SimulatedRig:
             contact = ElastomerContact(indenter)
         self.world = SimWorld(self.clock, spec, contact=contact, seed=seed)
         self.sensor_kind = sensor_kind
+        self.triggered_camera = False  # acquisition sets it: frames only on capture
+        # The simulated gauge's latency bound in clock seconds: a contact solve (up to
+        # ~60 ms of real time) stretched by the clock's speed-up, plus a tick.
+        factor = getattr(self.clock, "factor", 1.0)
+        self.gauge_latency_s = round(max(0.05, 0.08 * factor), 3)
         self.gauge_kind = gauge
         stages = self.world.stages
         self.zaber = ZaberChainSim(self.clock, {
@@ -80,9 +85,10 @@ class SimulatedRig:
         ]
         if self.gauge_kind == "ft300":
             lines += ['[gauge]', 'driver = "ft300"', f'port = "{self.servers["gauge"].url}"', 'device_id = 9',
-                      'mode = "stream"', '']
+                      'mode = "stream"', f'fresh_after_s = {self.gauge_latency_s!r}', '']
         else:
-            lines += ['[gauge]', 'driver = "m8128"', f'port = "{self.servers["gauge"].url}"', 'mode = "stream"', '']
+            lines += ['[gauge]', 'driver = "m8128"', f'port = "{self.servers["gauge"].url}"', 'mode = "stream"',
+                      f'fresh_after_s = {self.gauge_latency_s!r}', '']
         if with_camera:
             lines += ['[camera]', 'driver = "sim"', 'width = 256', 'height = 256', 'fps = 25.0',
                       'discard_frames = 2', '']
@@ -92,8 +98,10 @@ class SimulatedRig:
     def config(self, *, with_camera: bool = True) -> RigConfig:
         return parse_config(self.config_toml(with_camera=with_camera), "<built-in simulated rig>")
 
-    def camera_source(self, *, fps: float = 25.0, height: int = 256, width: int = 256) -> SimCameraSource:
-        return SimCameraSource(self.world, self.clock, fps=fps, height=height, width=width, kind=self.sensor_kind)
+    def camera_source(self, *, fps: float = 25.0, height: int = 256, width: int = 256,
+                      triggered: bool = False) -> SimCameraSource:
+        return SimCameraSource(self.world, self.clock, fps=fps, height=height, width=width, kind=self.sensor_kind,
+                               triggered=triggered or self.triggered_camera)
 
     def close(self) -> None:
         for server in self.servers.values():

@@ -1,0 +1,97 @@
+"""A protocol file: the object, the sensor, the press/shear/twist parameters, capture.
+
+Files live in ``protocols/library/NAME.toml`` (or anywhere: pass a path). Every key
+is validated at load; errors name the file, the key and what was allowed.
+"""
+
+from __future__ import annotations
+
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+
+from rig.config import _Table
+from rig.errors import ConfigError
+
+LIBRARY = Path(__file__).parent / "library"
+SENSOR_KINDS = ("rgb", "rgb_markers", "white_markers")
+
+
+@dataclass(frozen=True)
+class Protocol:
+    path: str
+    text: str  # the file as written: stored in every run file
+    name: str
+    description: str
+    object: str  # indenter name (the simulated rig presses this one)
+    sensor: str  # sensor kind
+    depth_step_mm: float
+    max_depth_mm: float
+    shear_mm: float
+    twist_deg: float
+    speed_mm_s: float  # path speed of every linear move
+    twist_speed_deg_s: float
+    approach_mm: float  # start this far above the contact point
+    approach_speed_mm_s: float  # to and from the start, not captured
+    capture_hz: float
+
+    @property
+    def levels(self) -> list[float]:
+        n = round(self.max_depth_mm / self.depth_step_mm)
+        return [self.depth_step_mm * (i + 1) for i in range(n)]
+
+
+def parse_protocol(text: str, path: str = "<string>") -> Protocol:
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(path, "-", f"not valid TOML: {exc}") from exc
+    top = _Table(path, "", data)
+    meta = _Table(path, "protocol", top.get("protocol", dict))
+    motion = _Table(path, "motion", top.get("motion", dict))
+    capture = _Table(path, "capture", top.get("capture", dict, {}))
+    from rig.sim.tactile.indenters import INDENTERS
+
+    p = Protocol(
+        path=path, text=text,
+        name=meta.get("name", str),
+        description=meta.get("description", str, ""),
+        object=meta.get("object", str, choices=tuple(INDENTERS)),
+        sensor=meta.get("sensor", str, "rgb", choices=SENSOR_KINDS),
+        depth_step_mm=motion.get("depth_step_mm", float, 0.4, positive=True),
+        max_depth_mm=motion.get("max_depth_mm", float, 1.6, positive=True),
+        shear_mm=motion.get("shear_mm", float, 2.0, low=0.0, high=20.0),
+        twist_deg=motion.get("twist_deg", float, 5.0, low=0.0, high=90.0),
+        speed_mm_s=motion.get("speed_mm_s", float, 0.01, low=1e-4, high=10.0),
+        twist_speed_deg_s=motion.get("twist_speed_deg_s", float, 0.25, low=1e-3, high=90.0),
+        approach_mm=motion.get("approach_mm", float, 1.0, low=0.05, high=50.0),
+        approach_speed_mm_s=motion.get("approach_speed_mm_s", float, 0.5, low=1e-3, high=10.0),
+        capture_hz=capture.get("rate_hz", float, 1.0, low=0.01, high=100.0),
+    )
+    for table in (meta, motion, capture):
+        table.done()
+    top.done()
+    levels = p.max_depth_mm / p.depth_step_mm
+    if abs(levels - round(levels)) > 1e-6:
+        raise ConfigError(path, "motion.max_depth_mm",
+                          f"must be a whole number of depth steps ({p.depth_step_mm} mm), got {p.max_depth_mm}")
+    return p
+
+
+def protocol_names() -> list[str]:
+    return sorted(p.stem for p in LIBRARY.glob("*.toml"))
+
+
+def load_protocol(name_or_path: str | Path) -> Protocol:
+    """A library protocol by name, or a protocol file by path."""
+    candidate = Path(name_or_path)
+    if candidate.suffix != ".toml":
+        candidate = LIBRARY / f"{name_or_path}.toml"
+        if not candidate.exists():
+            raise ConfigError(str(name_or_path), "-",
+                              f"no such protocol; the library has: {', '.join(protocol_names())} (or pass a .toml path)")
+    try:
+        text = candidate.read_text()
+    except FileNotFoundError as exc:
+        raise ConfigError(str(candidate), "-", "file not found") from exc
+    return parse_protocol(text, str(candidate))
