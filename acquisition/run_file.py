@@ -55,11 +55,16 @@ PER_FRAME = (
 )
 
 
+ROW_BLOCK = 256  # per-row datasets grow in blocks; the frame count says how many rows are valid
+
+
 class RunWriter:
     def __init__(self, f: h5py.File, path: Path):
         self.f = f
         self.path = path
         self.n = f[S.FRAMES].shape[0]
+        self._frames = f[S.FRAMES]
+        self._rows = {name: f[name] for name, *_ in PER_FRAME}
 
     @classmethod
     def create(cls, path: str | Path, header: RunHeader, frame_shape: tuple[int, int, int],
@@ -121,10 +126,9 @@ class RunWriter:
         return writer
 
     def _truncate_to_consistent(self) -> None:
-        """A crash between resizes can leave per-frame datasets one row apart: keep the rows all have."""
-        n = min([self.f[S.FRAMES].shape[0]] + [self.f[name].shape[0] for name, *_ in PER_FRAME])
-        for name in [S.FRAMES] + [name for name, *_ in PER_FRAME]:
-            d = self.f[name]
+        """Valid rows are those with a frame; trim the block-extended rows to match."""
+        n = min([self._frames.shape[0]] + [d.shape[0] for d in self._rows.values()])
+        for d in [self._frames, *self._rows.values()]:
             if d.shape[0] != n:
                 d.resize(n, axis=0)
         self.n = n
@@ -132,7 +136,7 @@ class RunWriter:
 
     @property
     def capture_indices(self) -> np.ndarray:
-        return self.f[S.CAPTURE_INDEX][: self.n]
+        return self._rows[S.CAPTURE_INDEX][: self.n]
 
     def header_attr(self, name: str):
         return self.f.attrs[name]
@@ -140,14 +144,15 @@ class RunWriter:
     def append(self, frame: np.ndarray, **row) -> None:
         """One capture: the frame and its row (keys: the per-frame dataset names)."""
         i = self.n
-        frames = self.f[S.FRAMES]
+        frames = self._frames
         if frame.shape != frames.shape[1:]:
             raise RunFileError(f"{self.path}: frame shape {frame.shape} differs from the run's {frames.shape[1:]}")
-        # Per-frame rows first, the frame last: a crash in between leaves a row that
-        # _truncate_to_consistent drops, never a frame without its wrench and pose.
-        for name, *_ in PER_FRAME:
-            d = self.f[name]
-            d.resize(i + 1, axis=0)
+        # Rows first (their datasets grow a block at a time), the frame last: the
+        # frame count is the number of valid rows, so a crash in between leaves a row
+        # without a frame (trimmed on resume), never a frame without its wrench and pose.
+        for name, d in self._rows.items():
+            if d.shape[0] <= i:
+                d.resize(i + ROW_BLOCK, axis=0)
             d[i] = row[name]
         frames.resize(i + 1, axis=0)
         frames[i] = frame
@@ -161,6 +166,7 @@ class RunWriter:
 
     def close(self) -> None:
         if self.f.id.valid:
+            self._truncate_to_consistent()
             self.f.close()
 
 

@@ -63,6 +63,7 @@ class CameraConfig:
     exposure: float | None = None
     white_balance_K: float | None = None
     discard_frames: int = 5
+    mm_per_px: float | None = None  # calibration of the frames, stored in every run file
 
 
 @dataclass(frozen=True)
@@ -193,7 +194,7 @@ def _gauge(path: str, data: Any) -> GaugeConfig:
         rate_hz=t.get("rate_hz", int, 100, low=1, high=2000),
         timeout_s=t.get("timeout_s", float, 0.5, positive=True),
         retries=t.get("retries", int, 2, low=0, high=10),
-        fresh_after_s=t.get("fresh_after_s", float, 0.05, low=0.0, high=10.0),
+        fresh_after_s=t.get("fresh_after_s", float, 0.05, low=0.0, high=3600.0),
     )
     t.done()
     return cfg
@@ -211,6 +212,7 @@ def _camera(path: str, data: Any) -> CameraConfig:
         exposure=t.get("exposure", float, None),
         white_balance_K=t.get("white_balance_K", float, None, low=1000.0, high=15000.0),
         discard_frames=t.get("discard_frames", int, 5, low=0, high=1000),
+        mm_per_px=t.get("mm_per_px", float, None, low=1e-4, high=10.0),
     )
     t.done()
     return cfg

@@ -19,7 +19,8 @@ from rig.safety import ForceGuard, check_speed, check_target
 from rig.types import AxisStatus, Wrench
 
 log = logging.getLogger("rig")
-HOME_ORDER = ("z", "x", "y", "theta")  # lift the indenter clear before anything slides
+HOME_ORDER = ("z", "x", "y", "theta")
+MIN_POLLS_BEFORE_TIMEOUT = 50  # lift the indenter clear before anything slides
 
 
 @dataclass
@@ -212,8 +213,12 @@ class Rig:
 
     def _wait(self, names: tuple[str, ...], deadline: float, what: str, guard: ForceGuard | None = None) -> None:
         poll_s = self.config.safety.poll_s
+        polls = 0
         while self.monitor(names, guard, what):
-            if self.clock.now() > deadline:
+            polls += 1
+            # Both the deadline and a minimum of polls: on a fast simulated clock one
+            # poll's serial exchanges can take seconds of clock time.
+            if self.clock.now() > deadline and polls > MIN_POLLS_BEFORE_TIMEOUT:
                 raise DeviceTimeout(", ".join(names), what, None, "motion did not finish in time")
             self.clock.sleep(poll_s)
 

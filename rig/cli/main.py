@@ -19,6 +19,9 @@ app = typer.Typer(help="Control the tactile-sensing rig: stages, force gauge, ca
 sim_app = typer.Typer(help="The built-in simulated rig (devices on ptys or loopback sockets).",
                       no_args_is_help=True)
 app.add_typer(sim_app, name="sim")
+protocols_app = typer.Typer(help="The protocol library: list protocols, show one's steps, duration and frames.",
+                            no_args_is_help=True)
+app.add_typer(protocols_app, name="protocols")
 
 ConfigOpt = Annotated[Optional[Path], typer.Option(
     "--config", "-c", help="Rig config TOML (default: $RIG_CONFIG, then ./rig.toml).", dir_okay=False)]
@@ -172,6 +175,55 @@ def sim_serve(
             threading.Event().wait()
         except KeyboardInterrupt:
             typer.echo("stopped")
+
+
+@protocols_app.command("list")
+@friendly_errors
+def protocols_list():
+    """List the library's protocols with their duration and frame count."""
+    from rig.cli.protocol_cmds import list_protocols
+
+    list_protocols()
+
+
+@protocols_app.command("show")
+@friendly_errors
+def protocols_show(name: Annotated[str, typer.Argument(help="A library protocol name, or a path to a .toml file.")]):
+    """Print a protocol's steps, its true duration, frame count and disk estimate."""
+    from rig.cli.protocol_cmds import show_protocol
+
+    show_protocol(name)
+
+
+def _origin(value: str) -> tuple[float, float, float, float]:
+    try:
+        parts = tuple(float(v) for v in value.split(","))
+    except ValueError:
+        raise typer.BadParameter(f"expected four numbers x,y,z,theta, got {value!r}") from None
+    if len(parts) != 4:
+        raise typer.BadParameter(f"expected four numbers x,y,z,theta, got {value!r}")
+    return parts
+
+
+@app.command("run-protocol")
+@friendly_errors
+def run_protocol_cmd(
+    name: Annotated[str, typer.Argument(help="A library protocol (rig protocols list), or a path to a .toml file.")],
+    out: Annotated[Optional[Path], typer.Option(help="The HDF5 run file to write (default NAME.h5); must not exist.")] = None,
+    resume: Annotated[Optional[Path], typer.Option(help="Continue this interrupted run file where it stopped.")] = None,
+    dry_run: Annotated[bool, typer.Option("--dry-run", help="Check every move against the config's limits and print "
+                                                            "duration and frame count; move nothing.")] = False,
+    origin: Annotated[str, typer.Option(help="The contact point in axis coordinates: x,y,z (mm),theta (deg).")] = "0,0,0,0",
+    speedup: Annotated[float, typer.Option(help="--sim only: how many times faster than real time the simulated "
+                                                "rig's clock runs.", min=1.0, max=10000.0)] = 150.0,
+    config: ConfigOpt = None,
+    sim: SimOpt = False,
+):
+    """Run a protocol with synchronised capture (frame + wrench + pose at the protocol's rate) into HDF5."""
+    from rig.cli.protocol_cmds import run_protocol
+
+    run_protocol(name, out=out, resume=resume, dry_run=dry_run, config=config, sim=sim, origin=_origin(origin),
+                 speedup=speedup)
 
 
 if __name__ == "__main__":

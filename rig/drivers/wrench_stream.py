@@ -241,12 +241,13 @@ class GaugeBase:
         """The tared wrench interpolated at ``t_s`` and the skew (s) to the nearest sample.
 
         Waits (bounded) until a sample stamped at or after ``t_s`` has arrived, so the
-        interpolation brackets the moment. Polled gauges read once, now.
+        interpolation brackets the moment (host arrival stamps, as published rigs do;
+        the measurement-to-arrival latency is not subtracted). Polled gauges read once, now.
         """
         if self._reader is None:
             w = self.read()
             return w.as_array(), abs(w.t_s - t_s)
-        if not self.buffer.wait_after(t_s + self.fresh_after_s, timeout_s):
+        if not self.buffer.wait_after(t_s, timeout_s):
             self._reader.check()
             raise DeviceTimeout(self.label, "stream", None, f"no sample after t = {t_s:.3f} s within {timeout_s} s")
         values, skew = self.buffer.at(t_s)

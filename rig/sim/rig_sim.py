@@ -29,7 +29,7 @@ THETA_DEVICE_ID = 1
 class SimulatedRig:
     def __init__(self, clock: Clock | None = None, *, transport: str = "pty", gauge: str = "ft300",
                  spec: WorldSpec | None = None, seed: int = 0, indenter: str = "sphere10mm",
-                 sensor_kind: str = "rgb", contact=None):
+                 sensor_kind: str = "rgb", contact=None, gauge_rate_hz: float = 100.0):
         if gauge not in ("ft300", "m8128"):
             raise ValueError(f"simulated gauge must be 'ft300' or 'm8128', got {gauge!r}")
         self.clock = clock or SystemClock()
@@ -55,7 +55,8 @@ class SimulatedRig:
             self.servers["stages"] = SimServer(self.zaber, self.clock, transport=transport, name="zaber")
             self.servers["theta"] = SimServer(RtuServer({THETA_DEVICE_ID: self.theta}), self.clock,
                                               transport=transport, name="pr-drive")
-            model = Ft300Sim(self.world) if gauge == "ft300" else M8128Sim(self.world)
+            model = (Ft300Sim(self.world, rate_hz=gauge_rate_hz) if gauge == "ft300"
+                     else M8128Sim(self.world, rate_hz=gauge_rate_hz))
             self.servers["gauge"] = SimServer(model, self.clock, transport=transport, name=gauge)
         except Exception:
             self.close()

@@ -78,6 +78,10 @@ class Renderer:
         else:
             self.background = real_background(h, w)
         self._rng = np.random.default_rng(seed)
+        # Sensor noise from a bank of precomputed fields, shifted at random per frame:
+        # statistically the same per pixel, ~10x cheaper than fresh Gaussian draws.
+        self._noise = (self._rng.normal(0.0, self.spec.noise_std, (4, h, w, 3)).astype(np.float32)
+                       if self.spec.noise_std > 0 else None)
         pitch = self.spec.marker_pitch_mm
         n_x = int(self.geometry.width_mm / pitch)
         n_y = int(self.geometry.height_mm / pitch)
@@ -96,7 +100,7 @@ class Renderer:
     def slope_change(self, uz_mm: np.ndarray) -> np.ndarray:
         """(H, W, 3) colour change for the surface sink ``uz_mm`` (mechanics grid)."""
         z = -self._on_image(uz_mm)
-        gy, gx = np.gradient(z, self.mm_per_px)
+        gy, gx = np.gradient(z, np.float32(self.mm_per_px))
         gx = cv2.GaussianBlur(gx, (0, 0), self.blur_px)
         gy = cv2.GaussianBlur(gy, (0, 0), self.blur_px)
         if self.spec.kind == "white_markers":
@@ -106,8 +110,10 @@ class Renderer:
             gain = float(np.mean(np.hypot(self.coef[0], self.coef[1])))
             change = -gain * np.hypot(gx, gy)
             return np.repeat(change[..., None], 3, axis=2)
-        F = np.stack([gx, gy, gx * gx, gy * gy, gx * gy], axis=-1)
-        return F @ self.coef
+        gxx, gyy, gxy = gx * gx, gy * gy, gx * gy
+        c = self.coef
+        return np.stack([c[0, ch] * gx + c[1, ch] * gy + c[2, ch] * gxx + c[3, ch] * gyy + c[4, ch] * gxy
+                         for ch in range(3)], axis=-1)
 
     def marker_positions_px(self, ux_mm: np.ndarray | None, uy_mm: np.ndarray | None) -> np.ndarray:
         """(n, 2) marker centres (col, row) in pixels, displaced with the gel surface."""
@@ -144,6 +150,8 @@ class Renderer:
         if self.spec.has_markers:
             centres = self.marker_positions_px(fields.get("ux"), fields.get("uy"))
             img *= 1.0 - self.spec.marker_darkness * self._marker_mask(centres)[..., None]
-        if self.spec.noise_std > 0:
-            img += self._rng.normal(0.0, self.spec.noise_std, img.shape).astype(np.float32)
+        if self._noise is not None:
+            k = int(self._rng.integers(len(self._noise)))
+            dy, dx = (int(v) for v in self._rng.integers(0, img.shape[:2]))
+            img += np.roll(self._noise[k], (dy, dx), axis=(0, 1))
         return np.clip(img, 0, 255).astype(np.uint8)

@@ -1,0 +1,286 @@
+"""Run a protocol plan on a rig with synchronised 1 Hz capture into a run file.
+
+One executor for hardware and the simulated rig. Steps start at their planned times
+and captures happen on the fixed grid t = k / rate of protocol time, on the rig's
+clock, while moving: the frame count is the plan's, never what idle detection made
+of it. Each capture: trigger the camera, take the first frame at or after the
+trigger (its timestamp is the capture time), the gauge stream interpolated at that
+timestamp (the skew is recorded), the commanded and measured pose. Force limits are
+armed throughout; any error, Ctrl-C or SIGTERM stops all axes, lifts z clear,
+records why in the file and closes it.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from acquisition import schema as S
+from acquisition.run_file import RunFileError, RunHeader, RunWriter
+from protocols.plan import AXES, PHASES, Plan, Step
+from rig.errors import DeviceError, DeviceTimeout, ForceLimitExceeded, RigError, SafetyError
+from rig.safety import check_speed, check_target
+
+log = logging.getLogger("acquisition")
+
+
+@dataclass
+class Progress:
+    frame: int
+    frames: int
+    phase: str
+    level: int
+    t_protocol_s: float
+    duration_s: float
+    wrench: np.ndarray
+    skew_s: float
+
+
+@dataclass
+class RunResult:
+    status: str  # complete | aborted | interrupted
+    reason: str
+    frames: int
+    path: Path
+    skews_s: list[float] = field(default_factory=list)
+    trigger_lag_s: list[float] = field(default_factory=list)
+
+
+class ProtocolRefused(SafetyError):
+    """The protocol would leave the rig's soft limits or exceed a speed; nothing moved."""
+
+
+def preflight(config, plan: Plan, origin: dict[str, float]) -> None:
+    """Check every waypoint and speed of the plan against the rig config; moves nothing.
+
+    Raises ProtocolRefused naming the step, the axis, the value and the limit.
+    """
+    for step in plan.steps:
+        for pose in (step.start, step.end):
+            for axis, value in zip(AXES, pose):
+                if axis not in config.axes:
+                    if value != 0:
+                        raise ProtocolRefused(f"protocol step {step.index} ({step.phase}) moves axis {axis}, "
+                                              f"which {config.path} does not configure")
+                    continue
+                try:
+                    check_target(config.axes[axis], origin[axis] + value)
+                except SafetyError as exc:
+                    raise ProtocolRefused(f"protocol step {step.index} ({step.phase}, level {step.level}): {exc}") from None
+        for axis, speed in step.speeds.items():
+            if axis in config.axes:
+                try:
+                    check_speed(config.axes[axis], speed)
+                except SafetyError as exc:
+                    raise ProtocolRefused(f"protocol step {step.index} ({step.phase}): {exc}") from None
+
+
+def disk_bytes(plan: Plan, frame_shape: tuple[int, int, int]) -> int:
+    per_frame = int(np.prod(frame_shape)) + 8 * (6 + 4 + 4 + 3) + 8 + 4 + 2
+    return plan.frame_count * per_frame
+
+
+class Acquisition:
+    def __init__(self, rig, plan: Plan, *, origin: dict[str, float] | None = None,
+                 monitor_interval_s: float | None = None, progress: Callable[[Progress], None] | None = None):
+        if rig.camera is None or rig.gauge is None:
+            raise RigError("acquisition needs the camera and the force gauge open")
+        self.rig = rig
+        self.plan = plan
+        self.clock = rig.clock
+        self.origin = {a: 0.0 for a in AXES} | (origin or {})
+        self.monitor_interval_s = monitor_interval_s or rig.config.safety.poll_s
+        self.progress = progress
+        self.protocol = plan.protocol
+        self._measured: dict[str, float] = {}
+
+    # -- helpers ------------------------------------------------------------------
+    def _abs(self, rel: tuple[float, ...]) -> dict[str, float]:
+        return {a: self.origin[a] + v for a, v in zip(AXES, rel) if a in self.rig.axes}
+
+    def _safe_z(self) -> float:
+        return self.origin["z"] + self.protocol.approach_mm
+
+    def _go_to_start(self, pose_rel: tuple[float, ...]) -> None:
+        """Lift z clear (if low), move x, y, θ, then come down to the approach height."""
+        speed = self.protocol.approach_speed_mm_s
+        z_now = self.rig.axes["z"].position()
+        if z_now < self._safe_z() - 1e-6:
+            self.rig.move({"z": self._safe_z()}, speed)
+        target = self._abs(pose_rel)
+        lateral = {a: v for a, v in target.items() if a != "z"}
+        if lateral:  # positioning, not captured: each axis at its configured jog speed
+            self.rig.move(lateral)
+        self.rig.move({"z": self._safe_z()}, speed)
+
+    def _capture_frame(self, trigger_t: float):
+        cam = self.rig.camera
+        cam.trigger()
+        while True:
+            frame = cam.read(timeout_s=5.0)
+            if frame.t_s >= trigger_t - 1e-9:
+                return frame
+
+    def _measured_pose(self, moving: set[str]) -> list[float]:
+        for axis in self.rig.axes:
+            if axis in moving or axis not in self._measured:
+                self._measured[axis] = self.rig.axes[axis].position()
+        return [self._measured.get(a, self.origin[a]) - self.origin[a] for a in AXES]
+
+    # -- the run ----------------------------------------------------------------------
+    def run(self, path: str | Path, *, resume: bool = False, header: dict | None = None) -> RunResult:
+        path = Path(path)
+        plan, proto = self.plan, self.protocol
+        preflight(self.rig.config, plan, self.origin)
+        writer: RunWriter | None = None
+        k0 = 0
+        if resume:
+            writer = RunWriter.reopen(path)
+            if writer.header_attr(S.ATTR_PROTOCOL) != proto.text:
+                writer.close()
+                raise RunFileError(f"{path}: was recorded with a different protocol file; resume needs the same one")
+            done = writer.capture_indices
+            k0 = int(done[-1]) + 1 if len(done) else 0
+            if k0 >= plan.frame_count:
+                writer.set_status("complete", "")
+                writer.close()
+                return RunResult("complete", "already complete", int(len(done)), path)
+        result = RunResult("running", "", writer.n if writer else 0, path)
+        try:
+            start_pose = plan.pose_at(plan.capture_time(k0)) if k0 else plan.steps[0].start
+            self._go_to_start((start_pose[0], start_pose[1], proto.approach_mm, start_pose[3]))
+            self.rig.tare(50)
+            reference = self._capture_frame(self.clock.now()).image
+            if writer is None:
+                from rig.sim.tactile.indenters import get_indenter
+
+                info = dict(header or {})
+                mm_per_px = float(info.get("mm_per_px", float("nan")))
+                obj = get_indenter(proto.object)
+                object_image = obj.object_image(reference.shape[1], mm_per_px if math.isfinite(mm_per_px) else 14.0 / reference.shape[1])
+                writer = RunWriter.create(path, RunHeader(
+                    protocol_name=proto.name, protocol_toml=proto.text,
+                    rig_config=info.get("rig_config", ""), object_name=proto.object,
+                    object_geometry=obj.description, sensor_kind=proto.sensor, mm_per_px=mm_per_px,
+                    capture_hz=proto.capture_hz, frames_planned=plan.frame_count,
+                    contact_origin=tuple(self.origin[a] for a in AXES), phases=PHASES,
+                ), reference.shape, object_image, reference)
+            self._main(writer, k0, result)
+            self.rig.move({"z": self._safe_z()}, proto.approach_speed_mm_s)  # retract, not captured
+            result.status, result.reason = "complete", ""
+        except ForceLimitExceeded as exc:
+            result.status, result.reason = "aborted", f"force limit: {exc}"
+            self._safe_retract(result)
+        except DeviceError as exc:
+            result.status, result.reason = "aborted", f"device error: {exc}"
+            self._safe_retract(result)
+        except KeyboardInterrupt:
+            result.status, result.reason = "interrupted", "interrupted (Ctrl-C or SIGTERM); resume with --resume"
+            self._safe_retract(result)
+        except RunFileError:
+            self._safe_retract(result)
+            raise
+        finally:
+            if writer is not None:
+                result.frames = writer.n
+                try:
+                    writer.set_status(result.status if result.status != "running" else "aborted",
+                                      result.reason or ("" if result.status == "complete" else "stopped by an error"))
+                finally:
+                    writer.close()
+        return result
+
+    def _safe_retract(self, result: RunResult) -> None:
+        """Stop everything and lift z clear; a failure here is recorded, not hidden."""
+        self.rig.stop_all()
+        try:
+            self.rig.move({"z": self._safe_z()}, self.protocol.approach_speed_mm_s)
+        except (RigError, KeyboardInterrupt) as exc:
+            result.reason += f"; retract failed: {exc}"
+            log.error("retract after %s failed: %s", result.status, exc)
+
+    def _main(self, writer: RunWriter, k0: int, result: RunResult) -> None:
+        plan, proto, rig, clock = self.plan, self.protocol, self.rig, self.clock
+        steps = plan.captured_steps
+        starts, t = [], 0.0
+        for step in steps:
+            starts.append(t)
+            t += step.duration_s
+        n_frames = plan.frame_count
+        t_k0 = plan.capture_time(k0)
+        current, into = plan.locate(t_k0)
+        i_step = steps.index(current)
+        if k0 == 0:
+            rig.move(self._abs(plan.steps[0].end), {"z": plan.steps[0].speeds.get("z", proto.approach_speed_mm_s)})
+        else:  # back to where the interrupted run was, at protocol speed for the last part
+            here = current.pose_at(into)
+            rig.move({"z": self.origin["z"]}, proto.approach_speed_mm_s)
+            rig.move(self._abs(here), {a: max(proto.speed_mm_s, 1e-3) if a != "theta" else proto.twist_speed_deg_s
+                                        for a in self._abs(here)})
+        t0 = clock.now() - t_k0  # rig-clock time of protocol time 0
+        guard = rig.guard
+        moving: set[str] = set()
+
+        def start_step(i: int) -> None:
+            nonlocal guard, moving
+            step = steps[i]
+            targets = {a: v for a, v in self._abs(step.end).items() if a in step.speeds}
+            if targets:
+                guard = rig.start_move(targets, {a: step.speeds[a] for a in targets})
+                moving |= set(targets)
+
+        start_step(i_step)
+        next_step = i_step + 1
+        k = k0
+        next_monitor = clock.now()
+        while k < n_frames:
+            t_capture = t0 + plan.capture_time(k)
+            t_step = t0 + starts[next_step] if next_step < len(steps) else math.inf
+            now = clock.now()
+            wake = min(t_capture, t_step, next_monitor)
+            if wake > now:
+                clock.sleep(wake - now)
+            now = clock.now()
+            if now >= t_step - 1e-9:
+                start_step(next_step)
+                next_step += 1
+            if now >= next_monitor:
+                moving = rig.monitor(moving, guard, "protocol") if moving else moving
+                if not moving:
+                    rig.guard.check(rig.gauge.read())
+                next_monitor = now + self.monitor_interval_s
+            if now >= t_capture - 1e-9:
+                self._capture(writer, k, t_capture, moving, steps, starts, result)
+                k += 1
+        while moving:  # let the last step finish under the guard
+            moving = rig.monitor(moving, guard, "protocol")
+            clock.sleep(self.monitor_interval_s)
+
+    def _capture(self, writer: RunWriter, k: int, t_trigger: float, moving: set[str], steps: list[Step],
+                 starts: list[float], result: RunResult) -> None:
+        t_prot = self.plan.capture_time(k)
+        frame = self._capture_frame(t_trigger)
+        wrench, skew = self.rig.gauge.sample_at(frame.t_s)
+        step, _ = self.plan.locate(t_prot)
+        writer.append(frame.image, **{
+            S.WRENCH: wrench,
+            S.POSE_COMMANDED: np.asarray(self.plan.pose_at(t_prot)),
+            S.POSE_MEASURED: np.asarray(self._measured_pose(moving)),
+            S.T_FRAME: frame.t_s,
+            S.T_CAPTURE: t_prot,
+            S.WRENCH_SKEW: skew,
+            S.CAPTURE_INDEX: k,
+            S.STEP_INDEX: step.index,
+            S.PHASE_INDEX: PHASES.index(step.phase),
+            S.LEVEL: step.level,
+        })
+        result.skews_s.append(skew)
+        result.trigger_lag_s.append(frame.t_s - t_trigger)
+        if self.progress is not None:
+            self.progress(Progress(k + 1, self.plan.frame_count, step.phase, step.level, t_prot,
+                                   self.plan.captured_duration_s, wrench, skew))

@@ -1,0 +1,161 @@
+"""`rig protocols list|show` and `rig run-protocol`: parse, then call the library."""
+
+from __future__ import annotations
+
+import signal
+from pathlib import Path
+
+import typer
+from rich.console import Console
+from rich.table import Table
+
+console = Console()
+
+
+def fmt_duration(s: float) -> str:
+    h, rem = divmod(int(round(s)), 3600)
+    m, sec = divmod(rem, 60)
+    return f"{h}h{m:02d}m{sec:02d}s" if h else f"{m}m{sec:02d}s"
+
+
+def list_protocols() -> None:
+    from protocols.plan import Plan
+    from protocols.spec import load_protocol, protocol_names
+
+    table = Table(title="protocol library (protocols/library)")
+    for col in ("name", "object", "sensor", "levels", "duration", "frames"):
+        table.add_column(col)
+    for name in protocol_names():
+        p = load_protocol(name)
+        plan = Plan.of(p)
+        table.add_row(name, p.object, p.sensor, str(len(p.levels)), fmt_duration(plan.total_duration_s),
+                      str(plan.frame_count))
+    console.print(table)
+
+
+def show_protocol(name: str, frame_px: int = 256) -> None:
+    from acquisition.executor import disk_bytes
+    from protocols.plan import Plan
+    from protocols.spec import load_protocol
+
+    p = load_protocol(name)
+    plan = Plan.of(p)
+    table = Table(title=f"{p.name}: {p.description}")
+    for col in ("#", "phase", "level", "to x, y, z mm / θ deg", "speed", "duration", "captured"):
+        table.add_column(col)
+    for s in plan.steps:
+        speed = f"{p.speed_mm_s:g} mm/s" if s.phase in ("press", "shear", "return") else (
+            f"{p.twist_speed_deg_s:g} °/s" if s.phase in ("twist", "untwist") else f"{p.approach_speed_mm_s:g} mm/s")
+        table.add_row(str(s.index), s.phase, str(s.level or "-"),
+                      f"{s.end[0]:+.2f}, {s.end[1]:+.2f}, {s.end[2]:+.2f} / {s.end[3]:+.1f}", speed,
+                      fmt_duration(s.duration_s), "yes" if s.captured else "no")
+    console.print(table)
+    gb = disk_bytes(plan, (frame_px, frame_px, 3)) / 1e9
+    console.print(f"file: {p.path}")
+    console.print(f"duration: {fmt_duration(plan.total_duration_s)} ({plan.total_duration_s:.1f} s; "
+                  f"captured {plan.captured_duration_s:.1f} s)")
+    console.print(f"frames: {plan.frame_count} at {p.capture_hz:g} Hz")
+    console.print(f"disk: about {gb:.2f} GB at {frame_px}x{frame_px} px (uncompressed frames)")
+
+
+def _terminate_as_interrupt(*_):
+    raise KeyboardInterrupt
+
+
+def run_protocol(name: str, *, out: Path | None, resume: Path | None, dry_run: bool, config: Path | None,
+                 sim: bool, origin: tuple[float, float, float, float], speedup: float) -> None:
+    from acquisition.executor import Acquisition, disk_bytes, preflight
+    from protocols.plan import AXES, Plan
+    from protocols.spec import load_protocol
+
+    protocol = load_protocol(name)
+    plan = Plan.of(protocol)
+    origin_map = dict(zip(AXES, origin))
+    path = resume or out or Path(f"{protocol.name}.h5")
+    if dry_run:
+        if sim:
+            from rig.sim.rig_sim import SimulatedRig
+
+            with SimulatedRig() as simulated:
+                rig_config = simulated.config()
+        else:
+            from rig.cli.session import resolve_config_path
+            from rig.config import load_config
+
+            rig_config = load_config(resolve_config_path(config))
+        preflight(rig_config, plan, origin_map)
+        console.print(f"dry run: {protocol.name} fits {rig_config.path}'s soft limits and speeds; nothing moved")
+        console.print(f"duration {fmt_duration(plan.total_duration_s)}, {plan.frame_count} frames, "
+                      f"about {disk_bytes(plan, (256, 256, 3)) / 1e9:.2f} GB at 256x256")
+        return
+    if resume is None and path.exists():
+        raise FileExistsError(f"{path} exists: pass another --out, or --resume {path}")
+    previous = signal.signal(signal.SIGTERM, _terminate_as_interrupt)
+    try:
+        if sim:
+            _run_sim(protocol, plan, path, resume is not None, origin_map, speedup)
+        else:
+            _run_hw(protocol, plan, path, resume is not None, origin_map, config)
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def _run_sim(protocol, plan, path, resume, origin, speedup) -> None:
+    from rig.clock import ScaledClock
+    from rig.rig import Rig
+    from rig.sim.rig_sim import SimulatedRig
+
+    clock = ScaledClock(speedup)
+    # The simulated gauge streams at 10 Hz of simulated time here: at 150x its nominal
+    # 100 Hz would be 15,000 CRC-checked frames per real second, a third of the CPU,
+    # while the run samples the wrench once a second (0.1 s between samples is 1 µm).
+    with SimulatedRig(clock, indenter=protocol.object, sensor_kind=protocol.sensor, gauge_rate_hz=10.0) as simulated:
+        simulated.triggered_camera = True
+        simulated.world.min_solve_interval_s = 0.05  # gauge physics at most 20 solves/s of real time
+        cfg = simulated.config()
+        geometry = simulated.world.contact.solver.geometry
+        header = {"rig_config": "# built-in simulated rig (rig run-protocol --sim)\n" + simulated.config_toml(),
+                  "mm_per_px": geometry.width_mm / cfg.camera.width}
+        with Rig.open(cfg, clock, camera=True, sim=simulated) as rig:
+            # Safety checks every 2 s of clock (20 µm of travel at 0.01 mm/s): at 150x a
+            # tighter interval would spend the CPU on serial polls, not on the run.
+            _execute(rig, plan, path, resume, origin, header, monitor_interval_s=2.0)
+
+
+def _run_hw(protocol, plan, path, resume, origin, config) -> None:
+    from rig.cli.session import resolve_config_path
+    from rig.config import load_config
+    from rig.rig import Rig
+
+    cfg_path = resolve_config_path(config)
+    cfg = load_config(cfg_path)
+    header = {"rig_config": Path(cfg_path).read_text(), "mm_per_px": cfg.camera.mm_per_px if cfg.camera else float("nan")}
+    with Rig.open(cfg, camera=True) as rig:
+        _execute(rig, plan, path, resume, origin, header, monitor_interval_s=None)
+
+
+def _execute(rig, plan, path, resume, origin, header, monitor_interval_s) -> None:
+    from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
+
+    from acquisition.executor import Acquisition
+
+    with Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.completed}/{task.total} frames"),
+                  TimeRemainingColumn(), TextColumn("{task.fields[wrench]}"), console=console,
+                  transient=False) as bar:
+        task = bar.add_task(plan.protocol.name, total=plan.frame_count, wrench="")
+
+        def on_progress(p):
+            bar.update(task, completed=p.frame, description=f"{plan.protocol.name} L{p.level} {p.phase:8s}",
+                       wrench=f"Fz {p.wrench[2]:6.2f} N  Fx {p.wrench[0]:+5.2f}  Fy {p.wrench[1]:+5.2f}  "
+                              f"Mz {p.wrench[5]:+6.2f} N·mm")
+
+        acq = Acquisition(rig, plan, origin=origin, monitor_interval_s=monitor_interval_s, progress=on_progress)
+        result = acq.run(path, resume=resume, header=header)
+    colour = {"complete": "green", "interrupted": "yellow"}.get(result.status, "red")
+    console.print(f"[{colour}]{result.status}[/]: {result.frames}/{plan.frame_count} frames in {path}"
+                  + (f" — {result.reason}" if result.reason else ""))
+    if result.skews_s:
+        console.print(f"wrench–frame skew: median {1e3 * sorted(result.skews_s)[len(result.skews_s) // 2]:.1f} ms, "
+                      f"max {1e3 * max(result.skews_s):.1f} ms (rig clock)")
+    if result.status != "complete":
+        raise typer.Exit(3 if result.status == "interrupted" else 2)
