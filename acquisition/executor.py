@@ -127,8 +127,12 @@ class Acquisition:
                 return frame
 
     def _measured_pose(self, moving: set[str]) -> list[float]:
+        now = self.clock.now()
         for axis in self.rig.axes:
-            if axis in moving or axis not in self._measured:
+            seen = self.rig.last_status.get(axis)
+            if seen is not None and seen[0] == now:  # the monitor read it at this very instant
+                self._measured[axis] = seen[1].position
+            elif axis in moving or axis not in self._measured:
                 self._measured[axis] = self.rig.axes[axis].position()
         return [self._measured.get(a, self.origin[a]) - self.origin[a] for a in AXES]
 
@@ -249,7 +253,7 @@ class Acquisition:
             if now >= t_step - 1e-9:
                 start_step(next_step)
                 next_step += 1
-            if now >= next_monitor:
+            if now >= next_monitor - 1e-9:
                 moving = rig.monitor(moving, guard, "protocol") if moving else moving
                 if not moving:
                     rig.guard.check(rig.gauge.read())

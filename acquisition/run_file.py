@@ -65,6 +65,7 @@ class RunWriter:
         self.n = f[S.FRAMES].shape[0]
         self._frames = f[S.FRAMES]
         self._rows = {name: f[name] for name, *_ in PER_FRAME}
+        self._rows_len = min(d.shape[0] for d in self._rows.values())
 
     @classmethod
     def create(cls, path: str | Path, header: RunHeader, frame_shape: tuple[int, int, int],
@@ -132,6 +133,7 @@ class RunWriter:
             if d.shape[0] != n:
                 d.resize(n, axis=0)
         self.n = n
+        self._rows_len = n
         self.f.flush()
 
     @property
@@ -150,9 +152,11 @@ class RunWriter:
         # Rows first (their datasets grow a block at a time), the frame last: the
         # frame count is the number of valid rows, so a crash in between leaves a row
         # without a frame (trimmed on resume), never a frame without its wrench and pose.
-        for name, d in self._rows.items():
-            if d.shape[0] <= i:
+        if self._rows_len <= i:
+            for d in self._rows.values():
                 d.resize(i + ROW_BLOCK, axis=0)
+            self._rows_len = i + ROW_BLOCK
+        for name, d in self._rows.items():
             d[i] = row[name]
         frames.resize(i + 1, axis=0)
         frames[i] = frame

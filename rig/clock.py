@@ -64,6 +64,12 @@ class ManualClock:
     def __init__(self, start_s: float = 0.0):
         self._t = start_s
         self._lock = threading.Lock()
+        self._listeners: list = []
+
+    def add_listener(self, callback) -> None:
+        """``callback()`` runs after every advance, in the advancing thread: simulated
+        devices emit what became due before the advancing code reads them."""
+        self._listeners.append(callback)
 
     def now(self) -> float:
         with self._lock:
@@ -78,3 +84,5 @@ class ManualClock:
             raise ValueError("a clock cannot go backwards")
         with self._lock:
             self._t += dt_s
+        for callback in list(self._listeners):
+            callback()

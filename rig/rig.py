@@ -41,6 +41,7 @@ class Rig:
         self.guard = ForceGuard(config.safety) if config.safety else None
         self.stop_errors: list[DeviceError] = []
         self._targets: dict[str, float] = {}  # last target each axis reached
+        self.last_status: dict[str, tuple[float, AxisStatus]] = {}  # (clock time, status) from monitor
 
     @classmethod
     def open(cls, config: RigConfig, clock: Clock | None = None, *, axes: tuple[str, ...] | None = None,
@@ -122,14 +123,15 @@ class Rig:
     def monitor(self, names, guard: ForceGuard | None = None, what: str = "move") -> set[str]:
         """One safety check: the wrench against the limits, the axes for faults.
 
-        Returns the axes still moving. Raises ForceLimitExceeded or DeviceFault (the
-        caller stops the rig).
+        Returns the axes still moving; ``last_status`` keeps what each axis reported.
+        Raises ForceLimitExceeded or DeviceFault (the caller stops the rig).
         """
         (guard or self.guard).check(self.gauge.read())
         moving = set()
         for name in names:
             axis = self.axes[name]
             status = axis.status()
+            self.last_status[name] = (self.clock.now(), status)
             faults = axis.faults(status)
             if faults:
                 raise DeviceFault(axis.label, what, status.warnings, ", ".join(faults))

@@ -214,16 +214,16 @@ def run_protocol_cmd(
     dry_run: Annotated[bool, typer.Option("--dry-run", help="Check every move against the config's limits and print "
                                                             "duration and frame count; move nothing.")] = False,
     origin: Annotated[str, typer.Option(help="The contact point in axis coordinates: x,y,z (mm),theta (deg).")] = "0,0,0,0",
-    speedup: Annotated[float, typer.Option(help="--sim only: how many times faster than real time the simulated "
-                                                "rig's clock runs.", min=1.0, max=10000.0)] = 150.0,
     config: ConfigOpt = None,
     sim: SimOpt = False,
 ):
-    """Run a protocol with synchronised capture (frame + wrench + pose at the protocol's rate) into HDF5."""
+    """Run a protocol with synchronised capture (frame + wrench + pose at the protocol's rate) into HDF5.
+
+    With --sim the simulated rig runs on simulated time, as fast as the frames can be made.
+    """
     from rig.cli.protocol_cmds import run_protocol
 
-    run_protocol(name, out=out, resume=resume, dry_run=dry_run, config=config, sim=sim, origin=_origin(origin),
-                 speedup=speedup)
+    run_protocol(name, out=out, resume=resume, dry_run=dry_run, config=config, sim=sim, origin=_origin(origin))
 
 
 if __name__ == "__main__":

@@ -63,7 +63,7 @@ def _terminate_as_interrupt(*_):
 
 
 def run_protocol(name: str, *, out: Path | None, resume: Path | None, dry_run: bool, config: Path | None,
-                 sim: bool, origin: tuple[float, float, float, float], speedup: float) -> None:
+                 sim: bool, origin: tuple[float, float, float, float]) -> None:
     from acquisition.executor import Acquisition, disk_bytes, preflight
     from protocols.plan import AXES, Plan
     from protocols.spec import load_protocol
@@ -93,33 +93,33 @@ def run_protocol(name: str, *, out: Path | None, resume: Path | None, dry_run: b
     previous = signal.signal(signal.SIGTERM, _terminate_as_interrupt)
     try:
         if sim:
-            _run_sim(protocol, plan, path, resume is not None, origin_map, speedup)
+            _run_sim(protocol, plan, path, resume is not None, origin_map)
         else:
             _run_hw(protocol, plan, path, resume is not None, origin_map, config)
     finally:
         signal.signal(signal.SIGTERM, previous)
 
 
-def _run_sim(protocol, plan, path, resume, origin, speedup) -> None:
-    from rig.clock import ScaledClock
+def _run_sim(protocol, plan, path, resume, origin) -> None:
+    from rig.clock import ManualClock
     from rig.rig import Rig
     from rig.sim.rig_sim import SimulatedRig
 
-    clock = ScaledClock(speedup)
-    # The simulated gauge streams at 10 Hz of simulated time here: at 150x its nominal
-    # 100 Hz would be 15,000 CRC-checked frames per real second, a third of the CPU,
-    # while the run samples the wrench once a second (0.1 s between samples is 1 µm).
+    # Discrete-event time: simulated time advances only when the executor waits, so
+    # every capture happens exactly on schedule however long a frame takes to make,
+    # and the run takes as long as its work. The devices still talk over ptys.
+    clock = ManualClock()
+    # The simulated gauge streams at 10 Hz of simulated time: the run samples the
+    # wrench once a second (0.1 s between samples is 1 µm of travel at 0.01 mm/s).
     with SimulatedRig(clock, indenter=protocol.object, sensor_kind=protocol.sensor, gauge_rate_hz=10.0) as simulated:
         simulated.triggered_camera = True
-        simulated.world.min_solve_interval_s = 0.05  # gauge physics at most 20 solves/s of real time
         cfg = simulated.config()
         geometry = simulated.world.contact.solver.geometry
         header = {"rig_config": "# built-in simulated rig (rig run-protocol --sim)\n" + simulated.config_toml(),
                   "mm_per_px": geometry.width_mm / cfg.camera.width}
         with Rig.open(cfg, clock, camera=True, sim=simulated) as rig:
-            # Safety checks every 2 s of clock (20 µm of travel at 0.01 mm/s): at 150x a
-            # tighter interval would spend the CPU on serial polls, not on the run.
-            _execute(rig, plan, path, resume, origin, header, monitor_interval_s=2.0)
+            # Safety checks with every capture (10 µm of travel at 0.01 mm/s).
+            _execute(rig, plan, path, resume, origin, header, monitor_interval_s=1.0 / protocol.capture_hz)
 
 
 def _run_hw(protocol, plan, path, resume, origin, config) -> None:

@@ -206,6 +206,21 @@ class GaugeBase:
             "bytes_skipped": sync.bytes_skipped if sync else 0,
         }
 
+    AWAIT_TRIES = 200  # × (25 ms waiting + a 10 ms clock step): ~7 s before a timeout
+
+    def _await(self, wait, what: str) -> None:
+        """Wait for stream data: briefly in real time, then let the clock move on 10 ms.
+
+        On hardware that is only a longer wait. On a simulated discrete-event clock,
+        time moves only when someone sleeps, and the next sample is due only then.
+        """
+        for _ in range(self.AWAIT_TRIES):
+            if wait(0.025):
+                return
+            self._reader.check()
+            self.clock.sleep(0.01)
+        raise DeviceTimeout(self.label, what, None, "no stream sample arrived")
+
     def _raw_sample(self) -> Wrench:
         if self._reader is None:
             return Wrench.from_array(self.clock.now(), self._poll_raw())
@@ -213,9 +228,7 @@ class GaugeBase:
         sample = self.buffer.latest()
         if sample is None or self.clock.now() - sample.t_s > self.stale_after_s:
             before = self.buffer.total
-            if not self.buffer.wait_new(before, 1, timeout_s=max(self.stale_after_s, 0.5)):
-                self._reader.check()
-                raise DeviceTimeout(self.label, "stream", None, "no stream sample arrived")
+            self._await(lambda timeout: self.buffer.wait_new(before, 1, timeout_s=timeout), "stream")
             sample = self.buffer.latest()
         return sample
 
@@ -232,9 +245,7 @@ class GaugeBase:
         if self._reader is None:
             return self.read()
         t = self.clock.now() + self.fresh_after_s
-        if not self.buffer.wait_after(t, timeout_s=5.0):
-            self._reader.check()
-            raise DeviceTimeout(self.label, "stream", None, "no stream sample arrived")
+        self._await(lambda timeout: self.buffer.wait_after(t, timeout), "stream")
         return self.buffer.latest().minus(self.bias)
 
     def sample_at(self, t_s: float, timeout_s: float = 2.0) -> tuple[np.ndarray, float]:
@@ -247,9 +258,7 @@ class GaugeBase:
         if self._reader is None:
             w = self.read()
             return w.as_array(), abs(w.t_s - t_s)
-        if not self.buffer.wait_after(t_s, timeout_s):
-            self._reader.check()
-            raise DeviceTimeout(self.label, "stream", None, f"no sample after t = {t_s:.3f} s within {timeout_s} s")
+        self._await(lambda timeout: self.buffer.wait_after(t_s, timeout), f"sample at t = {t_s:.3f} s")
         values, skew = self.buffer.at(t_s)
         return values - self.bias, skew
 
@@ -262,9 +271,7 @@ class GaugeBase:
             samples = [self._poll_raw() for _ in range(n_samples)]
         else:
             before = self.buffer.total
-            if not self.buffer.wait_new(before, n_samples, timeout_s=5.0):
-                self._reader.check()
-                raise DeviceTimeout(self.label, "tare", None, f"fewer than {n_samples} samples in 5 s")
+            self._await(lambda timeout: self.buffer.wait_new(before, n_samples, timeout_s=timeout), "tare")
             samples = [s.as_array() for s in self.buffer.since(float("-inf"))[-n_samples:]]
         self.bias = np.mean(samples, axis=0)
         return self.bias

@@ -61,6 +61,7 @@ class SimServer:
         self._seq = itertools.count()
         self._conn: socket.socket | None = None
         self._lock = threading.Lock()
+        self._model_lock = threading.RLock()  # the loop thread and clock pumps share the model
         self.bytes_in = 0
         self.bytes_out = 0
         if transport == "pty":
@@ -77,6 +78,8 @@ class SimServer:
             self._master = self._slave = -1
         self._thread = threading.Thread(target=self._run, name=f"sim-{name}", daemon=True)
         self._thread.start()
+        if hasattr(clock, "add_listener"):
+            clock.add_listener(self.pump)
 
     # -- the loop -------------------------------------------------------------
     def _input_fd(self):
@@ -109,7 +112,15 @@ class SimServer:
                     self._conn = None
                     continue
                 self.bytes_in += len(data)
-                self._queue(self.model.feed(data, self.clock.now()))
+                with self._model_lock:
+                    self._queue(self.model.feed(data, self.clock.now()))
+            self.pump()
+
+    def pump(self) -> None:
+        """Emit what the model has due now (stream frames), under the model lock."""
+        with self._model_lock:
+            if self._master < 0 and self._conn is None and self.transport == "pty":
+                return
             self._queue(self.model.tick(self.clock.now()))
             self._flush_due()
 

@@ -36,7 +36,7 @@ class M8128Sim:
             if not 1 <= rate <= 2000:
                 return [f"ACK+SMPF={rate}$ERROR\r\n".encode()]
             self.rate_hz = rate
-            self.schedule = SampleSchedule(rate)
+            self.schedule = SampleSchedule(rate, report_on_advance=self.schedule.report_on_advance)
             return [f"ACK+SMPF={rate}$OK\r\n".encode()]
         if cmd == "AT+DCKMD=SUM":
             return [b"ACK+DCKMD=SUM$OK\r\n"]

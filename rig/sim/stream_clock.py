@@ -10,15 +10,19 @@ class SampleSchedule:
     than ``max_backlog`` periods are skipped, as a real sensor's would be lost.
     """
 
-    def __init__(self, rate_hz: float, max_backlog: int = 1000):
+    def __init__(self, rate_hz: float, max_backlog: int = 1000, report_on_advance: bool = False):
         if rate_hz <= 0:
             raise ValueError(f"stream rate must be > 0 Hz, got {rate_hz}")
         self.period_s = 1.0 / rate_hz
         self.max_backlog = max_backlog
+        # On a discrete-event (manual) clock a sample is also reported at every advance
+        # of time, so that "a sample from now" exists whenever time stands still.
+        self.report_on_advance = report_on_advance
         self.next_t: float | None = None
+        self._last_t: float | None = None
 
     def start(self, now_s: float) -> None:
-        self.next_t = now_s + self.period_s
+        self.next_t = now_s  # the first sample at once
 
     def stop(self) -> None:
         self.next_t = None
@@ -32,4 +36,8 @@ class SampleSchedule:
         while self.next_t <= now_s:
             times.append(self.next_t)
             self.next_t += self.period_s
+        if not times and self.report_on_advance and self._last_t is not None and now_s > self._last_t:
+            times.append(now_s)
+        if times:
+            self._last_t = times[-1]
         return times
