@@ -101,25 +101,10 @@ def run_protocol(name: str, *, out: Path | None, resume: Path | None, dry_run: b
 
 
 def _run_sim(protocol, plan, path, resume, origin) -> None:
-    from rig.clock import ManualClock
-    from rig.rig import Rig
-    from rig.sim.rig_sim import SimulatedRig
+    from acquisition.simulated import monitor_interval_s, simulated_rig_for
 
-    # Discrete-event time: simulated time advances only when the executor waits, so
-    # every capture happens exactly on schedule however long a frame takes to make,
-    # and the run takes as long as its work. The devices still talk over ptys.
-    clock = ManualClock()
-    # The simulated gauge streams at 10 Hz of simulated time: the run samples the
-    # wrench once a second (0.1 s between samples is 1 µm of travel at 0.01 mm/s).
-    with SimulatedRig(clock, indenter=protocol.object, sensor_kind=protocol.sensor, gauge_rate_hz=10.0) as simulated:
-        simulated.triggered_camera = True
-        cfg = simulated.config()
-        geometry = simulated.world.contact.solver.geometry
-        header = {"rig_config": "# built-in simulated rig (rig run-protocol --sim)\n" + simulated.config_toml(),
-                  "mm_per_px": geometry.width_mm / cfg.camera.width}
-        with Rig.open(cfg, clock, camera=True, sim=simulated) as rig:
-            # Safety checks with every capture (10 µm of travel at 0.01 mm/s).
-            _execute(rig, plan, path, resume, origin, header, monitor_interval_s=1.0 / protocol.capture_hz)
+    with simulated_rig_for(protocol) as (rig, _, header):
+        _execute(rig, plan, path, resume, origin, header, monitor_interval_s=monitor_interval_s(protocol))
 
 
 def _run_hw(protocol, plan, path, resume, origin, config) -> None:

@@ -1,0 +1,230 @@
+"""Protocol runs on the simulated rig, end to end, through the real drivers over ptys."""
+
+import dataclasses
+import os
+import signal
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from acquisition import schema as S
+from acquisition.executor import Acquisition, ProtocolRefused
+from acquisition.run_file import open_for_reading
+from acquisition.simulated import monitor_interval_s, simulated_rig_for
+from protocols.plan import PHASES, Plan
+from protocols.spec import load_protocol, parse_protocol
+from rig.config import SafetyConfig
+
+QUICK = load_protocol("sphere10mm").text.replace('name = "sphere10mm"', 'name = "quick"').replace(
+    "max_depth_mm = 1.6", "max_depth_mm = 0.8").replace("depth_step_mm = 0.4", "depth_step_mm = 0.8").replace(
+    "shear_mm = 2.0", "shear_mm = 0.3").replace("twist_deg = 5.0", "twist_deg = 2.0").replace(
+    "speed_mm_s = 0.01", "speed_mm_s = 0.1").replace("twist_speed_deg_s = 0.25", "twist_speed_deg_s = 1.0")
+
+
+@pytest.fixture
+def quick(tmp_path):
+    path = tmp_path / "quick.toml"
+    path.write_text(QUICK)
+    return load_protocol(path)
+
+
+def run(protocol, out, *, resume=False, progress=None, safety=None, on_rig=None):
+    with simulated_rig_for(protocol, safety=safety) as (rig, sim, header):
+        if on_rig:
+            on_rig(rig, sim)
+        acq = Acquisition(rig, Plan.of(protocol), monitor_interval_s=monitor_interval_s(protocol),
+                          progress=progress(sim) if progress else None)
+        result = acq.run(out, resume=resume, header=header)
+        try:
+            final = rig.positions()  # where the stages ended, read before the rig closes
+        except Exception:
+            final = None  # a device vanished: there is nothing to read
+        return result, final
+
+
+def test_complete_run_is_synchronised_and_physical(quick, tmp_path):
+    out = tmp_path / "run.h5"
+    result, final = run(quick, out)
+    plan = Plan.of(quick)
+    assert result.status == "complete" and result.frames == plan.frame_count == 33  # 8 + 4×3 + 2×4.24 + 2×2 s
+    with open_for_reading(out) as f:
+        assert f[S.FRAMES].shape == (plan.frame_count, 256, 256, 3) and f[S.FRAMES].chunks == (1, 256, 256, 3)
+        assert f[S.STATUS][()] == b"complete"
+        np.testing.assert_array_equal(f[S.CAPTURE_INDEX][:], np.arange(plan.frame_count))
+        t = f[S.T_FRAME][:]
+        np.testing.assert_allclose(np.diff(t), 1.0, atol=1e-9)  # 1 Hz on the rig clock, exactly
+        W, P, M = f[S.WRENCH][:], f[S.POSE_COMMANDED][:], f[S.POSE_MEASURED][:]
+        phase = f[S.PHASE_INDEX][:]
+        assert np.abs(M[:, :3] - P[:, :3]).max() < 0.005  # the stages are where the plan says
+        press = phase == PHASES.index("press")
+        assert np.all(np.diff(W[press, 2]) >= -0.02) and W[press, 2][-1] > 1.0  # Fz grows with depth
+        shear_y = (phase == PHASES.index("shear")) & (np.abs(P[:, 0]) < 1e-9) & (P[:, 1] > 0.1)
+        assert np.all(W[shear_y, 1] > 0)  # Fy follows +y
+        twist = (phase == PHASES.index("twist")) & (P[:, 3] > 1.0)
+        assert np.all(W[twist, 5] > 0)  # Mz follows the twist
+        assert f.attrs[S.ATTR_PROTOCOL] == QUICK and f.attrs[S.ATTR_OBJECT] == "sphere10mm"
+        assert f.attrs[S.ATTR_MM_PER_PX] == pytest.approx(14.0 / 256)
+        assert f[S.OBJECT_IMAGE].shape == (256, 256, 3) and f[S.REFERENCE_FRAME].shape == (256, 256, 3)
+        assert "simulated rig" in f.attrs[S.ATTR_RIG_CONFIG]
+    assert final["z"] == pytest.approx(quick.approach_mm, abs=1e-3)  # retracted at the end
+
+
+def test_file_is_readable_while_it_grows(quick, tmp_path):
+    out = tmp_path / "run.h5"
+    seen = []
+
+    def progress(sim):
+        def check(p):
+            if p.frame in (3, 9):
+                with open_for_reading(out) as f:  # a second reader, SWMR
+                    seen.append((p.frame, f[S.FRAMES].shape[0], f[S.STATUS][()]))
+        return check
+
+    result, _ = run(quick, out, progress=progress)
+    assert result.status == "complete"
+    assert seen == [(3, 3, b"running"), (9, 9, b"running")]
+
+
+def test_force_limit_trip_retracts_and_records(quick, tmp_path):
+    out = tmp_path / "run.h5"
+    result, final = run(quick, out, safety=SafetyConfig(max_force_N=(10.0, 10.0, 1.0), max_torque_Nmm=(300, 300, 300)))
+    assert result.status == "aborted" and "force limit" in result.reason and "Fz" in result.reason
+    assert final["z"] == pytest.approx(quick.approach_mm, abs=1e-3)  # lifted clear
+    with open_for_reading(out) as f:
+        assert f[S.STATUS][()] == b"aborted" and b"force limit" in f[S.STATUS_REASON][()]
+        assert 0 < f[S.FRAMES].shape[0] < Plan.of(quick).frame_count
+        assert np.all(f[S.WRENCH][:, 2] < 1.5)  # everything recorded was within (or at) the limit
+
+
+def test_soft_limit_refusal_before_any_motion(quick, tmp_path):
+    wide = parse_protocol(QUICK.replace("shear_mm = 0.3", "shear_mm = 15.0"), "wide.toml")
+    with simulated_rig_for(wide) as (rig, sim, header):
+        before = {n: s.position(sim.clock.now()) for n, s in sim.world.stages.items()}
+        with pytest.raises(ProtocolRefused, match=r"step \d+ \(shear, level 1\).*axis y.*soft limits"):
+            Acquisition(rig, Plan.of(wide)).run(tmp_path / "wide.h5", header=header)
+        assert {n: s.position(sim.clock.now()) for n, s in sim.world.stages.items()} == before
+    assert not (tmp_path / "wide.h5").exists()
+
+
+def interrupt_at(frame, action):
+    def progress(sim):
+        def hook(p):
+            if p.frame == frame:
+                action(sim)
+        return hook
+    return progress
+
+
+def ctrl_c(sim):
+    raise KeyboardInterrupt
+
+
+def test_ctrl_c_mid_move_stops_retracts_and_closes(quick, tmp_path):
+    out = tmp_path / "run.h5"
+    result, final = run(quick, out, progress=interrupt_at(6, ctrl_c))
+    assert result.status == "interrupted" and result.frames == 6
+    assert final["z"] == pytest.approx(quick.approach_mm, abs=1e-3)
+    with open_for_reading(out) as f:
+        assert f[S.STATUS][()] == b"interrupted" and f[S.FRAMES].shape[0] == 6
+
+
+def test_device_vanishing_mid_run_is_named_and_data_kept(quick, tmp_path):
+    out = tmp_path / "run.h5"
+    result, _ = run(quick, out, progress=interrupt_at(5, lambda sim: sim.servers["stages"].disconnect()))
+    assert result.status == "aborted" and "device error" in result.reason and "Zaber" in result.reason
+    assert "retract failed" in result.reason  # z is on the vanished chain: said, not hidden
+    with open_for_reading(out) as f:
+        assert f[S.STATUS][()] == b"aborted" and f[S.FRAMES].shape[0] >= 5
+
+
+def test_resume_continues_without_gap_or_duplicate(quick, tmp_path):
+    out = tmp_path / "run.h5"
+    first, _ = run(quick, out, progress=interrupt_at(7, ctrl_c))
+    assert first.status == "interrupted" and first.frames == 7
+    second, _ = run(quick, out, resume=True)
+    assert second.status == "complete"
+    with open_for_reading(out) as f:
+        np.testing.assert_array_equal(f[S.CAPTURE_INDEX][:], np.arange(Plan.of(quick).frame_count))
+        assert f[S.STATUS][()] == b"complete"
+        P = f[S.POSE_COMMANDED][:]
+        np.testing.assert_allclose(P, [Plan.of(quick).pose_at(k) for k in range(len(P))], atol=1e-9)
+
+
+def test_resume_refuses_another_protocol(quick, tmp_path):
+    out = tmp_path / "run.h5"
+    run(quick, out, progress=interrupt_at(3, ctrl_c))
+    other = parse_protocol(QUICK.replace("twist_deg = 2.0", "twist_deg = 3.0"), "other.toml")
+    from acquisition.run_file import RunFileError
+
+    with pytest.raises(RunFileError, match="different protocol"):
+        run(other, out, resume=True)
+
+
+@pytest.mark.slow
+def test_kill_9_then_resume(tmp_path):
+    proto = tmp_path / "slow.toml"
+    proto.write_text(QUICK.replace("speed_mm_s = 0.1", "speed_mm_s = 0.02"))
+    out = tmp_path / "run.h5"
+    rig_bin = str(Path(sys.executable).parent / "rig")
+    proc = subprocess.Popen([rig_bin, "run-protocol", str(proto), "--sim", "--out", str(out)],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        frames = 0
+        for _ in range(600):  # until it has written a few frames (bounded: ~60 s)
+            try:
+                proc.wait(timeout=0.1)
+                break
+            except subprocess.TimeoutExpired:
+                pass
+            if out.exists():
+                try:
+                    with open_for_reading(out) as f:
+                        frames = f[S.FRAMES].shape[0]
+                except Exception:
+                    frames = 0
+                if frames >= 8:
+                    break
+        assert frames >= 8, "the run never got going"
+        os.kill(proc.pid, signal.SIGKILL)
+        proc.wait(timeout=10)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    with open_for_reading(out) as f:  # readable after the crash, every flushed frame there
+        n = f[S.FRAMES].shape[0]
+        assert n >= 8 and f[S.STATUS][()] == b"running"
+        assert np.all(f[S.WRENCH][:n, 2] > -0.05)  # tared: ≥ 0 up to the noise
+    result = subprocess.run([rig_bin, "run-protocol", str(proto), "--sim", "--resume", str(out)],
+                            capture_output=True, text=True, timeout=300)
+    assert result.returncode == 0, result.stdout + result.stderr
+    planned = Plan.of(load_protocol(proto)).frame_count
+    with open_for_reading(out) as f:
+        np.testing.assert_array_equal(f[S.CAPTURE_INDEX][:], np.arange(planned))
+        assert f[S.STATUS][()] == b"complete"
+
+
+def test_cli_dry_run_refuses_a_protocol_beyond_travel(tmp_path):
+    from typer.testing import CliRunner
+
+    from rig.cli.main import app
+
+    wide = tmp_path / "wide.toml"
+    wide.write_text(QUICK.replace("max_depth_mm = 0.8", "max_depth_mm = 8.0"))
+    result = CliRunner().invoke(app, ["run-protocol", str(wide), "--sim", "--dry-run"])
+    assert result.exit_code == 1 and "soft limits" in result.output and "press" in result.output
+    ok = CliRunner().invoke(app, ["run-protocol", "sphere10mm", "--sim", "--dry-run"])
+    assert ok.exit_code == 0 and "5783 frames" in ok.output and "nothing moved" in ok.output
+
+
+def test_cli_malformed_protocol_names_file_and_key(tmp_path):
+    from typer.testing import CliRunner
+
+    from rig.cli.main import app
+
+    bad = tmp_path / "bad.toml"
+    bad.write_text(QUICK.replace('object = "sphere10mm"', 'object = 7'))
+    result = CliRunner().invoke(app, ["run-protocol", str(bad), "--sim"])
+    assert result.exit_code == 1 and f"{bad}: [protocol.object] must be str" in result.output
