@@ -134,8 +134,8 @@ def test_ctrl_c_mid_move_stops_retracts_and_closes(quick, tmp_path):
 def test_device_vanishing_mid_run_is_named_and_data_kept(quick, tmp_path):
     out = tmp_path / "run.h5"
     result, _ = run(quick, out, progress=interrupt_at(5, lambda sim: sim.servers["stages"].disconnect()))
-    assert result.status == "aborted" and "device error" in result.reason and "Zaber" in result.reason
-    assert "retract failed" in result.reason  # z is on the vanished chain: said, not hidden
+    assert result.status == "aborted" and "device error" in result.reason and "Zaber" in result.reason, result
+    assert "retract failed" in result.reason, result  # z is on the vanished chain: said, not hidden
     with open_for_reading(out) as f:
         assert f[S.STATUS][()] == b"aborted" and f[S.FRAMES].shape[0] >= 5
 

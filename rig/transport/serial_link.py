@@ -73,14 +73,14 @@ class SerialLink:
         try:
             self.port.write(data)
             self.port.flush()
-        except (serial.SerialException, OSError) as exc:
+        except (serial.SerialException, OSError, TypeError) as exc:
             raise DeviceDisconnected(self.device, command, None, f"write to {self.url} failed: {exc}") from exc
 
     def read_until(self, terminator: bytes, command: str) -> bytes:
         """Read through ``terminator``; raises DeviceTimeout with what did arrive."""
         try:
             data = self.port.read_until(terminator)
-        except (serial.SerialException, OSError) as exc:
+        except (serial.SerialException, OSError, TypeError) as exc:  # TypeError: port closed under us
             raise DeviceDisconnected(self.device, command, None, f"read from {self.url} failed: {exc}") from exc
         if not data.endswith(terminator):
             raise DeviceTimeout(self.device, command, data, f"no reply within {self.timeout_s:g} s")
@@ -89,7 +89,7 @@ class SerialLink:
     def read_exact(self, n: int, command: str) -> bytes:
         try:
             data = self.port.read(n)
-        except (serial.SerialException, OSError) as exc:
+        except (serial.SerialException, OSError, TypeError) as exc:
             raise DeviceDisconnected(self.device, command, None, f"read from {self.url} failed: {exc}") from exc
         if len(data) != n:
             raise DeviceTimeout(self.device, command, data, f"{len(data)} of {n} bytes within {self.timeout_s:g} s")
@@ -103,7 +103,7 @@ class SerialLink:
                 return b""
             waiting = self.port.in_waiting
             return first + (self.port.read(min(waiting, max_bytes)) if waiting else b"")
-        except (serial.SerialException, OSError) as exc:
+        except (serial.SerialException, OSError, TypeError) as exc:
             raise DeviceDisconnected(self.device, "read", None, f"read from {self.url} failed: {exc}") from exc
 
     def discard_input(self) -> bytes:
@@ -111,7 +111,7 @@ class SerialLink:
         try:
             waiting = self.port.in_waiting
             return self.port.read(waiting) if waiting else b""
-        except (serial.SerialException, OSError) as exc:
+        except (serial.SerialException, OSError, TypeError) as exc:
             raise DeviceDisconnected(self.device, "flush", None, f"{self.url}: {exc}") from exc
 
     def close(self) -> None:
