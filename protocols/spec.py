@@ -6,11 +6,10 @@ is validated at load; errors name the file, the key and what was allowed.
 
 from __future__ import annotations
 
-import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
-from rig.config import _Table
+from rig.config import _Table, toml_table
 from rig.errors import ConfigError
 
 LIBRARY = Path(__file__).parent / "library"
@@ -42,11 +41,7 @@ class Protocol:
 
 
 def parse_protocol(text: str, path: str = "<string>") -> Protocol:
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(path, "-", f"not valid TOML: {exc}") from exc
-    top = _Table(path, "", data)
+    top, _ = toml_table(text, path)
     meta = _Table(path, "protocol", top.get("protocol", dict))
     motion = _Table(path, "motion", top.get("motion", dict))
     capture = _Table(path, "capture", top.get("capture", dict, {}))

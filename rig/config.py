@@ -240,12 +240,17 @@ def _pendant(path: str, data: Any) -> PendantConfig:
     return cfg
 
 
-def parse_config(text: str, path: str = "<string>") -> RigConfig:
+def toml_table(text: str, path: str) -> tuple[_Table, dict]:
+    """The top-level table of a TOML text; a syntax error names the file."""
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ConfigError(path, "-", f"not valid TOML: {exc}") from exc
-    top = _Table(path, "", data)
+    return _Table(path, "", data), data
+
+
+def parse_config(text: str, path: str = "<string>") -> RigConfig:
+    top, data = toml_table(text, path)
     rig = _Table(path, "rig", top.get("rig", dict, {}))
     name = rig.get("name", str, Path(path).stem)
     rig.done()

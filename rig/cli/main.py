@@ -209,7 +209,8 @@ def _origin(value: str) -> tuple[float, float, float, float]:
 @friendly_errors
 def run_protocol_cmd(
     name: Annotated[str, typer.Argument(help="A library protocol (rig protocols list), or a path to a .toml file.")],
-    out: Annotated[Optional[Path], typer.Option(help="The HDF5 run file to write (default NAME.h5); must not exist.")] = None,
+    out: Annotated[Optional[Path], typer.Option(help="The HDF5 run file to write; must not exist "
+                                                    "(default: runs/NAME-YYYYmmdd-HHMMSS.h5).")] = None,
     resume: Annotated[Optional[Path], typer.Option(help="Continue this interrupted run file where it stopped.")] = None,
     dry_run: Annotated[bool, typer.Option("--dry-run", help="Check every move against the config's limits and print "
                                                             "duration and frame count; move nothing.")] = False,

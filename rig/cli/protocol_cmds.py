@@ -71,7 +71,13 @@ def run_protocol(name: str, *, out: Path | None, resume: Path | None, dry_run: b
     protocol = load_protocol(name)
     plan = Plan.of(protocol)
     origin_map = dict(zip(AXES, origin))
-    path = resume or out or Path(f"{protocol.name}.h5")
+    if resume is None and out is None:  # a new file every run: a second run never collides
+        import datetime as dt
+
+        out = Path("runs") / f"{protocol.name}-{dt.datetime.now().strftime('%Y%m%d-%H%M%S')}.h5"
+        if not dry_run:
+            out.parent.mkdir(parents=True, exist_ok=True)
+    path = resume or out
     if dry_run:
         if sim:
             from rig.sim.rig_sim import SimulatedRig
