@@ -17,6 +17,7 @@ from rig.drivers.wrench_stream import STREAM_POLL_S, FrameSync, GaugeBase, drain
 from rig.errors import DeviceDisconnected
 from rig.transport.crc import crc_ok
 from rig.transport.modbus_bus import ModbusBus, to_signed16
+from rig.transport.serial_link import PORT_ERRORS
 
 REG_WRENCH = 180
 REG_STREAM = 410
@@ -81,7 +82,7 @@ class FT300(GaugeBase):
             try:
                 waiting = port.in_waiting
                 return port.read(waiting if waiting else 1)
-            except (OSError, Exception) as exc:  # pyserial raises SerialException (an OSError subclass) or TypeError on a closed port
+            except PORT_ERRORS as exc:
                 raise DeviceDisconnected(self.label, "stream read", None, f"stream port failed: {exc}") from exc
 
         return read_chunk
@@ -94,5 +95,5 @@ class FT300(GaugeBase):
                 port.flush()
                 drain(port)  # frames still in flight
                 port.timeout = self._saved_timeout
-            except OSError as exc:
+            except PORT_ERRORS as exc:
                 raise DeviceDisconnected(self.label, "stop stream", None, str(exc)) from exc

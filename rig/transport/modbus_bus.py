@@ -14,7 +14,7 @@ from pymodbus.client import ModbusSerialClient
 from pymodbus.exceptions import ConnectionException, ModbusIOException
 
 from rig.errors import DeviceDisconnected, DeviceRejected, DeviceTimeout
-from rig.transport.serial_link import with_byte_count
+from rig.transport.serial_link import PORT_ERRORS, with_byte_count
 
 # Modbus application exception codes (Modbus Application Protocol v1.1b3, §7).
 EXCEPTION_NAMES = {
@@ -77,7 +77,7 @@ class ModbusBus:
                 raise DeviceTimeout(device, what, None, f"no valid Modbus reply on {self.url}: {exc}") from exc
             except ConnectionException as exc:
                 raise DeviceDisconnected(device, what, None, f"Modbus port {self.url} lost: {exc}") from exc
-            except OSError as exc:
+            except PORT_ERRORS as exc:
                 raise DeviceDisconnected(device, what, None, f"Modbus port {self.url} failed: {exc}") from exc
         if reply is None:
             raise DeviceTimeout(device, what, None, f"no reply on {self.url}")

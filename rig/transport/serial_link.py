@@ -10,6 +10,18 @@ import threading
 
 import serial
 
+try:
+    import termios
+
+    _TERMIOS_ERROR: tuple = (termios.error,)
+except ImportError:  # not POSIX
+    _TERMIOS_ERROR = ()
+
+# Every way a port fails when its device vanishes: pyserial's own error, the OS's,
+# termios.error from tcdrain on a dead pty (not an OSError), and TypeError from a
+# port pyserial has already closed.
+PORT_ERRORS = (serial.SerialException, OSError, TypeError, *_TERMIOS_ERROR)
+
 from rig.errors import DeviceDisconnected, DeviceTimeout
 
 
@@ -52,7 +64,7 @@ def open_port(url: str, *, baudrate: int, timeout_s: float, device: str) -> seri
     """Open ``url`` with pyserial (8N1). Raises DeviceDisconnected naming the device and port."""
     try:
         return with_byte_count(serial.serial_for_url(url, baudrate=baudrate, timeout=timeout_s, write_timeout=timeout_s))
-    except (serial.SerialException, OSError, ValueError) as exc:
+    except (*PORT_ERRORS, ValueError) as exc:
         raise DeviceDisconnected(device, f"open {url}", None, f"cannot open port {url}: {exc}") from exc
 
 
@@ -73,14 +85,14 @@ class SerialLink:
         try:
             self.port.write(data)
             self.port.flush()
-        except (serial.SerialException, OSError, TypeError) as exc:
+        except PORT_ERRORS as exc:
             raise DeviceDisconnected(self.device, command, None, f"write to {self.url} failed: {exc}") from exc
 
     def read_until(self, terminator: bytes, command: str) -> bytes:
         """Read through ``terminator``; raises DeviceTimeout with what did arrive."""
         try:
             data = self.port.read_until(terminator)
-        except (serial.SerialException, OSError, TypeError) as exc:  # TypeError: port closed under us
+        except PORT_ERRORS as exc:
             raise DeviceDisconnected(self.device, command, None, f"read from {self.url} failed: {exc}") from exc
         if not data.endswith(terminator):
             raise DeviceTimeout(self.device, command, data, f"no reply within {self.timeout_s:g} s")
@@ -89,7 +101,7 @@ class SerialLink:
     def read_exact(self, n: int, command: str) -> bytes:
         try:
             data = self.port.read(n)
-        except (serial.SerialException, OSError, TypeError) as exc:
+        except PORT_ERRORS as exc:
             raise DeviceDisconnected(self.device, command, None, f"read from {self.url} failed: {exc}") from exc
         if len(data) != n:
             raise DeviceTimeout(self.device, command, data, f"{len(data)} of {n} bytes within {self.timeout_s:g} s")
@@ -103,7 +115,7 @@ class SerialLink:
                 return b""
             waiting = self.port.in_waiting
             return first + (self.port.read(min(waiting, max_bytes)) if waiting else b"")
-        except (serial.SerialException, OSError, TypeError) as exc:
+        except PORT_ERRORS as exc:
             raise DeviceDisconnected(self.device, "read", None, f"read from {self.url} failed: {exc}") from exc
 
     def discard_input(self) -> bytes:
@@ -111,11 +123,11 @@ class SerialLink:
         try:
             waiting = self.port.in_waiting
             return self.port.read(waiting) if waiting else b""
-        except (serial.SerialException, OSError, TypeError) as exc:
+        except PORT_ERRORS as exc:
             raise DeviceDisconnected(self.device, "flush", None, f"{self.url}: {exc}") from exc
 
     def close(self) -> None:
         try:
             self.port.close()
-        except (serial.SerialException, OSError):
+        except PORT_ERRORS:
             pass  # closing a port that already vanished is not an error worth raising
