@@ -7,6 +7,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import h5py
 import numpy as np
 import pytest
 
@@ -163,31 +164,41 @@ def test_resume_refuses_another_protocol(quick, tmp_path):
         run(other, out, resume=True)
 
 
-@pytest.mark.slow
-def test_kill_9_then_resume(tmp_path):
+def start_run(tmp_path, extra=()):
     proto = tmp_path / "slow.toml"
     proto.write_text(QUICK.replace("speed_mm_s = 0.1", "speed_mm_s = 0.02"))
     out = tmp_path / "run.h5"
     rig_bin = str(Path(sys.executable).parent / "rig")
-    proc = subprocess.Popen([rig_bin, "run-protocol", str(proto), "--sim", "--out", str(out)],
+    proc = subprocess.Popen([rig_bin, "run-protocol", str(proto), "--sim", "--out", str(out), *extra],
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    try:
-        frames = 0
-        for _ in range(600):  # until it has written a few frames (bounded: ~60 s)
+    return proc, proto, out, rig_bin
+
+
+def wait_for_frames(proc, out, n):
+    """Until the growing run file holds ``n`` frames (bounded: ~60 s); waits on the process."""
+    frames = 0
+    for _ in range(600):
+        try:
+            proc.wait(timeout=0.1)
+            break
+        except subprocess.TimeoutExpired:
+            pass
+        if out.exists():
             try:
-                proc.wait(timeout=0.1)
+                with open_for_reading(out) as f:
+                    frames = f[S.FRAMES].shape[0]
+            except Exception:
+                frames = 0  # created but not yet readable
+            if frames >= n:
                 break
-            except subprocess.TimeoutExpired:
-                pass
-            if out.exists():
-                try:
-                    with open_for_reading(out) as f:
-                        frames = f[S.FRAMES].shape[0]
-                except Exception:
-                    frames = 0
-                if frames >= 8:
-                    break
-        assert frames >= 8, "the run never got going"
+    return frames
+
+
+@pytest.mark.slow
+def test_kill_9_then_resume(tmp_path):
+    proc, proto, out, rig_bin = start_run(tmp_path)
+    try:
+        assert wait_for_frames(proc, out, 8) >= 8, "the run never got going"
         os.kill(proc.pid, signal.SIGKILL)
         proc.wait(timeout=10)
     finally:
@@ -204,6 +215,20 @@ def test_kill_9_then_resume(tmp_path):
     with open_for_reading(out) as f:
         np.testing.assert_array_equal(f[S.CAPTURE_INDEX][:], np.arange(planned))
         assert f[S.STATUS][()] == b"complete"
+
+
+@pytest.mark.slow
+def test_sigterm_stops_records_and_closes(tmp_path):
+    proc, _, out, _ = start_run(tmp_path)
+    try:
+        assert wait_for_frames(proc, out, 4) >= 4
+        proc.send_signal(signal.SIGTERM)
+        assert proc.wait(timeout=60) == 3  # interrupted
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    with h5py.File(out, "r") as f:  # closed cleanly: opens without SWMR
+        assert f[S.STATUS][()] == b"interrupted" and f[S.FRAMES].shape[0] >= 4
 
 
 def test_cli_dry_run_refuses_a_protocol_beyond_travel(tmp_path):
