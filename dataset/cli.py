@@ -1,11 +1,105 @@
-"""``dataset``: turns collected runs into training data (issue 5; not yet built)."""
+"""``dataset``: turn collected runs into training data. Commands parse, then call the library.
+
+torch is not imported here: only the training Dataset (dataset.torch_dataset) needs it.
+"""
 
 from __future__ import annotations
 
-import sys
+import functools
+from pathlib import Path
+from typing import Annotated, Optional
+
+import typer
+
+app = typer.Typer(help="Run files (HDF5) → validated, split training data with contact conditions.",
+                  no_args_is_help=True, add_completion=False)
+
+Paths = Annotated[list[Path], typer.Argument(help="Run files (HDF5) written by `rig run-protocol`.")]
+
+
+def friendly(fn):
+    @functools.wraps(fn)
+    def wrapper(*args, **kwargs):
+        from rig.errors import RigError
+
+        try:
+            return fn(*args, **kwargs)
+        except (RigError, FileNotFoundError, ValueError, KeyError) as exc:
+            typer.secho(f"error: {exc}", fg=typer.colors.RED, err=True)
+            raise typer.Exit(1)
+
+    return wrapper
+
+
+@app.command()
+@friendly
+def info(paths: Paths):
+    """Frames, object, sensor kind, wrench ranges, status and duration of each run (also while it grows)."""
+    from dataset.runs import summarize
+    from rig.types import WRENCH_COMPONENTS, WRENCH_UNITS
+
+    for path in paths:
+        s = summarize(path)
+        typer.echo(f"{s.path}: {s.frames}/{s.frames_planned} frames {s.frame_shape[1]}x{s.frame_shape[0]}, "
+                   f"{s.status}{' (' + s.reason + ')' if s.reason else ''}; protocol {s.protocol}, object {s.object_name}, "
+                   f"sensor {s.sensor_kind}, {s.duration_s:.0f} s, {s.mm_per_px:.4f} mm/px")
+        typer.echo("  wrench: " + "  ".join(f"{c} [{lo:+.2f}, {hi:+.2f}] {u}" for c, lo, hi, u in
+                                            zip(WRENCH_COMPONENTS, s.wrench_min, s.wrench_max, WRENCH_UNITS)))
+
+
+@app.command()
+@friendly
+def validate(
+    paths: Paths,
+    max_skew_s: Annotated[float, typer.Option(help="Largest acceptable wrench–frame skew, s.", min=0.0)] = 0.1,
+):
+    """Check schema, shapes, units, NaN/inf, timestamp order, black or saturated frames, skew; exit 1 on findings."""
+    from dataset.runs import validate as check
+
+    bad = 0
+    for path in paths:
+        findings = check(path, max_skew_s=max_skew_s)
+        typer.echo(f"{path}: {'ok' if not findings else f'{len(findings)} finding(s)'}")
+        for item in findings:
+            typer.echo(f"  - {item}")
+        bad += bool(findings)
+    if bad:
+        raise typer.Exit(1)
+
+
+@app.command()
+@friendly
+def split(
+    ratio: Annotated[str, typer.Argument(help="Parts as train:test (8:2) or train:val:test (7:1:2).")],
+    paths: Paths,
+    out: Annotated[Path, typer.Option(help="Directory for split.json and one NAME.npy index file per part.")],
+    seed: Annotated[int, typer.Option(help="Random seed: the same seed gives the same split.")] = 0,
+    by: Annotated[str, typer.Option(help="frame (the paper's way), run or object (a test object never seen in "
+                                         "training).")] = "frame",
+    allow_incomplete: Annotated[bool, typer.Option(help="Use aborted or interrupted runs too (with a warning).")] = False,
+):
+    """Split runs deterministically; wrench statistics come from the training part only."""
+    from dataset.split import make_split
+
+    result = make_split(paths, ratio, out, seed=seed, by=by, allow_incomplete=allow_incomplete,
+                        warn=lambda m: typer.secho(m, fg=typer.colors.YELLOW, err=True))
+    sizes = ", ".join(f"{k} {len(v)}" for k, v in result.parts.items())
+    typer.echo(f"{out}: {sizes} frames from {len(result.runs)} run(s) (by {by}, seed {seed})")
+
+
+def _not_yet(name: str):
+    def command():
+        typer.secho(f"dataset {name}: not yet built (the dataset issue is open); info, validate and split work",
+                    fg=typer.colors.YELLOW, err=True)
+        raise typer.Exit(2)
+
+    command.__doc__ = f"Not yet built: {name}."
+    return command
+
+
+for _name in ("merge", "export", "import", "preview"):
+    app.command(_name)(_not_yet(_name))
 
 
 def main() -> None:
-    print("dataset: not yet built — info, validate, split 8:2, merge, export, import and preview "
-          "arrive with the dataset issue. Available now: `rig` (see README.md).", file=sys.stderr)
-    raise SystemExit(2)
+    app()

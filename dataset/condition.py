@@ -1,0 +1,28 @@
+"""The contact condition: the object image placed at each frame's pose, and the wrench normalised."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+
+
+def place_object(object_image: np.ndarray, x_mm: float, y_mm: float, theta_deg: float, mm_per_px: float,
+                 size: int | None = None) -> np.ndarray:
+    """The object image translated by (x, y) mm and rotated by θ about its axis.
+
+    The image is the contact face centred at pose (0, 0, 0°); +x is right, +y up
+    (image rows run down). Returns (size, size, 3) uint8 (size: the input's by default).
+    """
+    h, w = object_image.shape[:2]
+    centre = ((w - 1) / 2, (h - 1) / 2)
+    M = cv2.getRotationMatrix2D(centre, theta_deg, 1.0)  # counter-clockwise for +θ, as seen by the camera
+    M[0, 2] += x_mm / mm_per_px
+    M[1, 2] -= y_mm / mm_per_px
+    placed = cv2.warpAffine(object_image, M, (w, h), flags=cv2.INTER_LINEAR, borderValue=(0, 0, 0))
+    if size is not None and size != w:
+        placed = cv2.resize(placed, (size, size), interpolation=cv2.INTER_AREA)
+    return placed
+
+
+def normalise_wrench(wrench: np.ndarray, mean: np.ndarray, std: np.ndarray) -> np.ndarray:
+    return (np.asarray(wrench, dtype=np.float64) - mean) / std

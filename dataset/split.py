@@ -1,0 +1,146 @@
+"""Deterministic splits of run files: by frame, by run or by object.
+
+A split directory holds ``split.json`` (the runs, the ratios, the seed, the wrench
+statistics of the training part) and one ``NAME.npy`` per part: (n, 2) int32 rows of
+(run index, frame index). Training and evaluation read exactly those frames.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from acquisition import schema as S
+from dataset.runs import open_run, summarize
+from rig.errors import RigError
+
+MANIFEST = "split.json"
+PART_NAMES = {2: ("train", "test"), 3: ("train", "val", "test")}
+
+
+class SplitError(RigError):
+    pass
+
+
+def parse_ratios(text: str) -> tuple[float, ...]:
+    """'8:2' → (0.8, 0.2); '7:1:2' → (0.7, 0.1, 0.2)."""
+    try:
+        parts = [float(p) for p in text.split(":")]
+    except ValueError:
+        raise SplitError(f"split ratio {text!r}: expected numbers joined by ':' such as 8:2 or 7:1:2") from None
+    if len(parts) not in PART_NAMES or any(p < 0 for p in parts) or sum(parts) <= 0:
+        raise SplitError(f"split ratio {text!r}: expected two or three non-negative parts (train:test or train:val:test)")
+    total = sum(parts)
+    return tuple(p / total for p in parts)
+
+
+def _allocate(n: int, ratios: tuple[float, ...]) -> list[int]:
+    """Sizes summing to n, closest to the ratios (largest remainders)."""
+    exact = [r * n for r in ratios]
+    sizes = [int(x) for x in exact]
+    for i in sorted(range(len(ratios)), key=lambda i: exact[i] - sizes[i], reverse=True)[: n - sum(sizes)]:
+        sizes[i] += 1
+    return sizes
+
+
+@dataclass
+class Split:
+    directory: Path
+    runs: list[str]
+    parts: dict[str, np.ndarray]
+    wrench_mean: np.ndarray
+    wrench_std: np.ndarray
+
+
+def make_split(paths: list[str | Path], ratios_text: str, out: str | Path, *, seed: int = 0, by: str = "frame",
+               allow_incomplete: bool = False, warn=print) -> Split:
+    if by not in ("frame", "run", "object"):
+        raise SplitError(f"--by must be frame, run or object, got {by!r}")
+    ratios = parse_ratios(ratios_text)
+    names = PART_NAMES[len(ratios)]
+    summaries = [summarize(p) for p in paths]
+    shapes = {s.frame_shape for s in summaries}
+    if len(shapes) > 1:
+        detail = ", ".join(f"{s.path}: {s.frame_shape}" for s in summaries)
+        raise SplitError(f"frame sizes differ across runs ({detail}); resize them to one size first")
+    for s in summaries:
+        if s.status != "complete":
+            message = f"{s.path}: run is {s.status} ({s.reason or 'no reason recorded'}), {s.frames}/{s.frames_planned} frames"
+            if not allow_incomplete:
+                raise SplitError(message + "; pass --allow-incomplete to use its frames anyway")
+            warn(f"warning: {message}; using its frames (--allow-incomplete)")
+    rows = np.concatenate([np.stack([np.full(s.frames, i), np.arange(s.frames)], axis=1)
+                           for i, s in enumerate(summaries)]).astype(np.int32)
+    rng = np.random.default_rng(seed)
+    if by == "frame":
+        order = rng.permutation(len(rows))
+        cuts = np.cumsum(_allocate(len(rows), ratios))[:-1]
+        chosen = (rows[idx] for idx in np.split(order, cuts))
+        parts = {name: part[np.lexsort((part[:, 1], part[:, 0]))] for name, part in zip(names, chosen)}
+    else:
+        keys = [s.path if by == "run" else s.object_name for s in summaries]
+        groups = sorted(set(keys))
+        if len(groups) < len(ratios):
+            raise SplitError(f"--by {by}: {len(groups)} {by}(s) cannot fill {len(ratios)} parts; add runs or split by frame")
+        order = [groups[i] for i in rng.permutation(len(groups))]
+        sizes = _allocate(len(groups), ratios)
+        sizes = [max(1, s) for s in sizes]
+        while sum(sizes) > len(groups):
+            sizes[int(np.argmax(sizes))] -= 1
+        assignment, start = {}, 0
+        for name, size in zip(names, sizes):
+            for g in order[start:start + size]:
+                assignment[g] = name
+            start += size
+        run_part = np.array([names.index(assignment[k]) for k in keys])
+        parts = {name: rows[run_part[rows[:, 0]] == j] for j, name in enumerate(names)}
+    train = parts["train"]
+    wrench = np.concatenate([_wrenches(summaries[i].path, train[train[:, 0] == i][:, 1]) for i in range(len(summaries))])
+    mean = wrench.mean(axis=0) if len(wrench) else np.zeros(6)
+    std = wrench.std(axis=0) if len(wrench) else np.ones(6)
+    std = np.where(std > 1e-9, std, 1.0)
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    for name, part in parts.items():
+        np.save(out / f"{name}.npy", part)
+    manifest = {
+        "ratios": ratios_text, "by": by, "seed": seed,
+        "runs": [{"path": str(Path(s.path).resolve()), "frames": s.frames, "object": s.object_name,
+                  "sensor": s.sensor_kind, "status": s.status, "mm_per_px": s.mm_per_px,
+                  "frame_shape": list(s.frame_shape), "fingerprint": _fingerprint(s.path)} for s in summaries],
+        "parts": {name: int(len(part)) for name, part in parts.items()},
+        "wrench_mean": mean.tolist(), "wrench_std": std.tolist(),
+        "wrench_stats_from": "train",
+    }
+    (out / MANIFEST).write_text(json.dumps(manifest, indent=2) + "\n")
+    return Split(out, [s.path for s in summaries], parts, mean, std)
+
+
+def _wrenches(path: str, frames: np.ndarray) -> np.ndarray:
+    with open_run(path) as f:
+        return f[S.WRENCH][: (frames.max() + 1) if len(frames) else 0][frames] if len(frames) else np.zeros((0, 6))
+
+
+def _fingerprint(path: str) -> str:
+    """Identifies the run's content cheaply: protocol text, frame count, first and last wrench."""
+    with open_run(path) as f:
+        n = f[S.FRAMES].shape[0]
+        h = hashlib.sha1(str(f.attrs.get(S.ATTR_PROTOCOL, "")).encode())
+        h.update(str(n).encode())
+        if n:
+            h.update(f[S.WRENCH][0].tobytes() + f[S.WRENCH][n - 1].tobytes())
+        return h.hexdigest()[:16]
+
+
+def load_split(directory: str | Path) -> tuple[dict, dict[str, np.ndarray]]:
+    directory = Path(directory)
+    manifest_path = directory / MANIFEST
+    if not manifest_path.exists():
+        raise SplitError(f"{directory}: no {MANIFEST}; make one with `dataset split`")
+    manifest = json.loads(manifest_path.read_text())
+    parts = {name: np.load(directory / f"{name}.npy") for name in manifest["parts"]}
+    return manifest, parts

@@ -1,0 +1,84 @@
+"""A PyTorch Dataset over a split: (condition image, wrench, tactile image).
+
+Imports torch: used by training only, never by the other `dataset` commands. HDF5
+files are opened lazily in each worker process (h5py handles do not survive fork),
+read with SWMR, and kept open for the worker's life.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import cv2
+import h5py
+import numpy as np
+import torch
+from torch.utils.data import Dataset
+
+from acquisition import schema as S
+from dataset.condition import normalise_wrench, place_object
+from dataset.split import load_split
+
+
+def to_model_inputs(batch: dict, device=None) -> dict:
+    """uint8 images → float in [−1, 1] on ``device`` (the GPU, in training): 4× less data
+    crosses from the loader's workers than if they sent floats."""
+    out = dict(batch)
+    for key in ("condition", "tactile"):
+        out[key] = batch[key].to(device, non_blocking=True).float().div_(127.5).sub_(1.0)
+    out["wrench"] = batch["wrench"].to(device, non_blocking=True)
+    return out
+
+
+class TactileDataset(Dataset):
+    """Items: dict(condition (3, s, s) uint8, wrench (6,) float32 normalised with the training
+    part's statistics, tactile (3, s, s) uint8, pose (4,), run, frame). Images are RGB;
+    ``to_model_inputs`` scales them to [−1, 1]."""
+
+    def __init__(self, split_dir: str | Path, part: str = "train", size: int = 256):
+        self.manifest, parts = load_split(split_dir)
+        if part not in parts:
+            raise KeyError(f"{split_dir}: no part {part!r}; it has {', '.join(parts)}")
+        self.rows = parts[part]
+        self.size = size
+        self.runs = [r["path"] for r in self.manifest["runs"]]
+        self.mm_per_px = [float(r["mm_per_px"]) for r in self.manifest["runs"]]
+        self.mean = np.asarray(self.manifest["wrench_mean"])
+        self.std = np.asarray(self.manifest["wrench_std"])
+        self._files: dict[int, h5py.File] = {}
+        self._objects: dict[int, np.ndarray] = {}
+        self._pid = None
+
+    def __len__(self) -> int:
+        return len(self.rows)
+
+    def _file(self, run: int) -> h5py.File:
+        if self._pid != os.getpid():  # a fresh worker: handles from the parent are not ours
+            self._files, self._objects, self._pid = {}, {}, os.getpid()
+        if run not in self._files:
+            f = h5py.File(self.runs[run], "r", swmr=True)
+            self._files[run] = f
+            self._objects[run] = f[S.OBJECT_IMAGE][()]
+        return self._files[run]
+
+    def _to_tensor(self, bgr: np.ndarray) -> torch.Tensor:
+        if bgr.shape[0] != self.size:
+            bgr = cv2.resize(bgr, (self.size, self.size), interpolation=cv2.INTER_AREA)
+        return torch.from_numpy(np.ascontiguousarray(bgr[..., ::-1].transpose(2, 0, 1)))
+
+    def __getitem__(self, i: int) -> dict:
+        run, frame = (int(v) for v in self.rows[i])
+        f = self._file(run)
+        tactile = f[S.FRAMES][frame]
+        wrench = f[S.WRENCH][frame]
+        pose = f[S.POSE_MEASURED][frame]
+        condition = place_object(self._objects[run], pose[0], pose[1], pose[3], self.mm_per_px[run])
+        return {
+            "condition": self._to_tensor(condition),
+            "wrench": torch.from_numpy(normalise_wrench(wrench, self.mean, self.std).astype(np.float32)),
+            "tactile": self._to_tensor(tactile),
+            "pose": torch.from_numpy(pose.astype(np.float32)),
+            "run": run,
+            "frame": frame,
+        }

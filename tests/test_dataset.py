@@ -1,0 +1,168 @@
+"""`dataset`: info, validate, split and the training Dataset, on run files written by RunWriter."""
+
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from acquisition import schema as S
+from acquisition.run_file import RunHeader, RunWriter
+from dataset.cli import app
+from dataset.condition import place_object
+from dataset.runs import summarize, validate
+from dataset.split import SplitError, load_split, make_split, parse_ratios
+from protocols.plan import PHASES
+from rig.sim.tactile.indenters import get_indenter
+
+runner = CliRunner()
+
+
+def make_run(path: Path, n: int = 40, *, obj: str = "sphere10mm", status: str = "complete", size: int = 64,
+             seed: int = 0, wrench_offset: float = 0.0) -> Path:
+    rng = np.random.default_rng(seed)
+    header = RunHeader("test", f"# {obj}", "", obj, "", "rgb", 14 / size, 1.0, n, (0, 0, 0, 0), PHASES)
+    frames = rng.integers(20, 230, (n, size, size, 3), dtype=np.uint8)
+    w = RunWriter.create(path, header, (size, size, 3), get_indenter(obj).object_image(size, 14 / size), frames[0])
+    for i in range(n):
+        w.append(frames[i], wrench=rng.normal(size=6) + wrench_offset, pose_commanded=np.zeros(4),
+                 pose_measured=np.array([0.5, -0.25, -1.0, 0.0]), t_frame_s=float(i), t_capture_s=float(i),
+                 wrench_skew_s=0.001, capture_index=i, step_index=0, phase_index=1, level=1)
+    w.set_status(status, "" if status == "complete" else "force limit: Fz = 9 N")
+    w.close()
+    return path
+
+
+@pytest.fixture
+def runs(tmp_path):
+    return [make_run(tmp_path / f"run{i}.h5", n=30 + 10 * i, obj=obj, seed=i)
+            for i, obj in enumerate(["sphere10mm", "sphere10mm", "heart", "ring"])]
+
+
+def test_ratios():
+    assert parse_ratios("8:2") == (0.8, 0.2)
+    assert parse_ratios("7:1:2") == pytest.approx((0.7, 0.1, 0.2))
+    for bad in ("8", "8:x", "-1:2", "1:1:1:1"):
+        with pytest.raises(SplitError):
+            parse_ratios(bad)
+
+
+@pytest.mark.parametrize("ratio", ["8:2", "7:1:2"])
+def test_frame_split_is_reproducible_disjoint_and_complete(runs, tmp_path, ratio):
+    a = make_split(runs, ratio, tmp_path / "a", seed=3)
+    b = make_split(runs, ratio, tmp_path / "b", seed=3)
+    c = make_split(runs, ratio, tmp_path / "c", seed=4)
+    for name in a.parts:
+        np.testing.assert_array_equal(a.parts[name], b.parts[name])
+    assert any(not np.array_equal(a.parts[k], c.parts[k]) for k in a.parts)
+    rows = np.concatenate(list(a.parts.values()))
+    total = sum(summarize(r).frames for r in runs)
+    assert len(rows) == total and len({tuple(r) for r in rows}) == total  # every frame, once
+    fractions = [len(v) / total for v in a.parts.values()]
+    assert fractions == pytest.approx(parse_ratios(ratio), abs=1 / total + 1e-9)
+
+
+@pytest.mark.parametrize("by", ["run", "object"])
+def test_grouped_split_never_shares(runs, tmp_path, by):
+    s = make_split(runs, "1:1", tmp_path / by, seed=1, by=by)
+    manifest, parts = load_split(tmp_path / by)
+    key = (lambda r: manifest["runs"][r]["path"]) if by == "run" else (lambda r: manifest["runs"][r]["object"])
+    train = {key(r) for r in parts["train"][:, 0]}
+    test = {key(r) for r in parts["test"][:, 0]}
+    assert train and test and not train & test
+    assert len(parts["train"]) + len(parts["test"]) == sum(summarize(r).frames for r in runs)
+
+
+def test_wrench_statistics_come_from_train_only(tmp_path):
+    a = make_run(tmp_path / "a.h5", n=50, obj="heart", wrench_offset=0.0)
+    b = make_run(tmp_path / "b.h5", n=50, obj="ring", wrench_offset=100.0, seed=1)
+    s = make_split([a, b], "1:1", tmp_path / "s", by="object", seed=0)
+    train_obj = {summarize([a, b][r]).object_name for r in s.parts["train"][:, 0]}
+    expected = 100.0 if train_obj == {"ring"} else 0.0
+    assert np.mean(s.wrench_mean) == pytest.approx(expected, abs=0.5)
+
+
+def test_aborted_run_is_an_error_or_a_warning(tmp_path):
+    bad = make_run(tmp_path / "aborted.h5", status="aborted")
+    result = runner.invoke(app, ["split", "8:2", str(bad), "--out", str(tmp_path / "s")])
+    assert result.exit_code == 1 and "aborted.h5: run is aborted" in result.output and "Traceback" not in result.output
+    result = runner.invoke(app, ["split", "8:2", str(bad), "--out", str(tmp_path / "s"), "--allow-incomplete"])
+    assert result.exit_code == 0 and "warning" in result.output
+
+
+def test_bad_files_get_one_line_errors(tmp_path, runs):
+    not_hdf5 = tmp_path / "notes.h5"
+    not_hdf5.write_text("hello")
+    empty = tmp_path / "empty.h5"
+    with h5py.File(empty, "w") as f:
+        f.create_dataset("frames", data=np.zeros((1, 4, 4, 3), np.uint8))
+    small = make_run(tmp_path / "small.h5", size=32)
+    cases = [
+        (["info", str(not_hdf5)], "notes.h5: not an HDF5 file"),
+        (["info", str(tmp_path / "missing.h5")], "missing.h5: no such file"),
+        (["info", str(empty)], "empty.h5: not a run file: missing wrench"),
+        (["split", "8:2", str(runs[0]), str(small), "--out", str(tmp_path / "s")], "frame sizes differ"),
+    ]
+    for args, words in cases:
+        result = runner.invoke(app, args)
+        assert result.exit_code == 1 and words in result.output and "Traceback" not in result.output, result.output
+
+
+def test_validate_finds_problems(tmp_path):
+    good = make_run(tmp_path / "good.h5")
+    assert validate(good) == []
+    broken = make_run(tmp_path / "broken.h5")
+    with h5py.File(broken, "r+") as f:
+        f[S.WRENCH][3, 2] = np.nan
+        f[S.T_FRAME][10] = 2.0
+        f[S.FRAMES][0] = 0
+        f[S.WRENCH_SKEW][5] = 0.5
+    findings = "\n".join(validate(broken))
+    for words in ("wrench: NaN/inf in 1 rows (first at frame 3)", "t_frame_s: not increasing",
+                  "frames[0]: all black", "wrench_skew_s: 1 frames beyond 0.1 s"):
+        assert words in findings
+    result = runner.invoke(app, ["validate", str(good), str(broken)])
+    assert result.exit_code == 1 and "good.h5: ok" in result.output and "broken.h5: 4 finding(s)" in result.output
+
+
+def test_info_reports_runs(runs):
+    result = runner.invoke(app, ["info", str(runs[2])])
+    assert result.exit_code == 0 and "50/50 frames 64x64, complete" in result.output and "object heart" in result.output
+
+
+def test_object_placed_at_the_pose():
+    img = np.zeros((101, 101, 3), np.uint8)
+    img[50, 50] = 255
+    moved = place_object(img, 1.0, 0.5, 0.0, mm_per_px=0.1)  # +10 px right, +5 px up
+    assert np.unravel_index(moved[..., 0].argmax(), moved.shape[:2]) == (45, 60)
+    img[50, 70] = 200
+    turned = place_object(img, 0.0, 0.0, 90.0, mm_per_px=0.1)  # +90°: a point on +x goes to +y (up)
+    ys, xs = np.nonzero(turned[..., 0] > 100)
+    assert (30, 50) in set(zip(ys.tolist(), xs.tolist()))
+
+
+def test_torch_dataset_and_workers(runs, tmp_path):
+    import torch
+    from torch.utils.data import DataLoader
+
+    from dataset.torch_dataset import TactileDataset, to_model_inputs
+
+    make_split(runs, "8:2", tmp_path / "s", seed=0)
+    ds = TactileDataset(tmp_path / "s", "train", size=32)
+    item = ds[0]
+    assert item["condition"].shape == item["tactile"].shape == (3, 32, 32) and item["tactile"].dtype == torch.uint8
+    assert item["wrench"].shape == (6,)
+    loader = DataLoader(ds, batch_size=8, num_workers=2)
+    batch = to_model_inputs(next(iter(loader)))
+    assert batch["tactile"].shape == (8, 3, 32, 32) and -1.0 <= batch["tactile"].min() <= batch["tactile"].max() <= 1.0
+    with pytest.raises(KeyError, match="val"):
+        TactileDataset(tmp_path / "s", "val")
+
+
+def test_dataset_commands_do_not_import_torch():
+    import subprocess
+    import sys
+
+    code = "import sys; from dataset.cli import app; import dataset.runs, dataset.split; print('torch' in sys.modules)"
+    assert subprocess.run([sys.executable, "-c", code], capture_output=True, text=True).stdout.strip() == "False"
