@@ -87,18 +87,47 @@ def split(
     typer.echo(f"{out}: {sizes} frames from {len(result.runs)} run(s) (by {by}, seed {seed})")
 
 
-def _not_yet(name: str):
-    def command():
-        typer.secho(f"dataset {name}: not yet built (the dataset issue is open); info, validate and split work",
-                    fg=typer.colors.YELLOW, err=True)
-        raise typer.Exit(2)
+@app.command()
+@friendly
+def merge(paths: Paths, out: Annotated[Path, typer.Option(help="The merged run file to write; must not exist.")]):
+    """Merge runs of one object, sensor and frame size into one file (each frame keeps its source)."""
+    from dataset.interchange import merge_runs
 
-    command.__doc__ = f"Not yet built: {name}."
-    return command
+    typer.echo(f"{out}: {merge_runs(paths, out)} frames from {len(paths)} run(s)")
 
 
-for _name in ("merge", "export", "import", "preview"):
-    app.command(_name)(_not_yet(_name))
+@app.command()
+@friendly
+def export(path: Annotated[Path, typer.Argument(help="A run file.")],
+           out: Annotated[Path, typer.Option(help="Folder for frames/*.png, frames.csv, object.png, run.json.")]):
+    """Export a run to PNG frames and a CSV of wrenches and poses (for people who don't use HDF5)."""
+    from dataset.interchange import export_run
+
+    typer.echo(f"{out}: {export_run(path, out)} frames")
+
+
+@app.command("import")
+@friendly
+def import_(folder: Annotated[Path, typer.Argument(help="A folder in the export format (docs/dataset.md).")],
+            out: Annotated[Path, typer.Option(help="The run file to write; must not exist.")],
+            mm_per_px: Annotated[Optional[float], typer.Option(help="Frame calibration, mm per pixel (else run.json's).",
+                                                               min=1e-5)] = None,
+            object_name: Annotated[Optional[str], typer.Option("--object", help="Object name (else run.json's).")] = None):
+    """Import tactile PNGs, a CSV of wrenches and poses and an object image from another rig."""
+    from dataset.interchange import import_run
+
+    typer.echo(f"{out}: {import_run(folder, out, mm_per_px=mm_per_px, object_name=object_name)} frames imported")
+
+
+@app.command()
+@friendly
+def preview(path: Annotated[Path, typer.Argument(help="A run file.")],
+            out: Annotated[Path, typer.Option(help="The contact sheet PNG to write.")],
+            tiles: Annotated[int, typer.Option(help="How many evenly spaced frames.", min=1, max=200)] = 24):
+    """A contact sheet PNG of frames labelled with their wrenches."""
+    from dataset.interchange import preview as sheet
+
+    typer.echo(f"{out}: {sheet(path, out, tiles=tiles)} frames")
 
 
 def main() -> None:

@@ -82,11 +82,15 @@ def test_file_is_readable_while_it_grows(quick, tmp_path):
             if p.frame in (3, 9):
                 with open_for_reading(out) as f:  # a second reader, SWMR
                     seen.append((p.frame, f[S.FRAMES].shape[0], f[S.STATUS][()]))
+                from dataset.runs import summarize
+
+                info = summarize(out)  # what `dataset info` prints, on the growing file
+                seen.append((info.frames, info.status))
         return check
 
     result, _ = run(quick, out, progress=progress)
     assert result.status == "complete"
-    assert seen == [(3, 3, b"running"), (9, 9, b"running")]
+    assert seen == [(3, 3, b"running"), (3, "running"), (9, 9, b"running"), (9, "running")]
 
 
 def test_force_limit_trip_retracts_and_records(quick, tmp_path):

@@ -166,3 +166,56 @@ def test_dataset_commands_do_not_import_torch():
 
     code = "import sys; from dataset.cli import app; import dataset.runs, dataset.split; print('torch' in sys.modules)"
     assert subprocess.run([sys.executable, "-c", code], capture_output=True, text=True).stdout.strip() == "False"
+
+
+def test_export_import_round_trip(tmp_path):
+    src = make_run(tmp_path / "src.h5", n=12)
+    assert runner.invoke(app, ["export", str(src), "--out", str(tmp_path / "folder")]).exit_code == 0
+    result = runner.invoke(app, ["import", str(tmp_path / "folder"), "--out", str(tmp_path / "back.h5")])
+    assert result.exit_code == 0, result.output
+    with h5py.File(src, "r") as a, h5py.File(tmp_path / "back.h5", "r") as b:
+        for name in (S.FRAMES, S.WRENCH, S.POSE_MEASURED, S.POSE_COMMANDED, S.T_FRAME, S.OBJECT_IMAGE):
+            np.testing.assert_array_equal(a[name][()], b[name][()], err_msg=name)
+        assert b.attrs[S.ATTR_MM_PER_PX] == a.attrs[S.ATTR_MM_PER_PX] and b[S.STATUS][()] == b"complete"
+    assert validate(tmp_path / "back.h5") == []
+
+
+def test_import_errors_name_file_row_and_column(tmp_path):
+    src = make_run(tmp_path / "src.h5", n=4)
+    folder = tmp_path / "folder"
+    runner.invoke(app, ["export", str(src), "--out", str(folder)])
+    table = folder / "frames.csv"
+    text = table.read_text()
+    table.write_text(text.replace(text.splitlines()[2].split(",")[4], "heavy", 1))
+    result = runner.invoke(app, ["import", str(folder), "--out", str(tmp_path / "x.h5")])
+    assert result.exit_code == 1 and "frames.csv: row 3, column Fz_N: 'heavy' is not a number" in result.output
+    (folder / "object.png").unlink()
+    table.write_text(text)
+    result = runner.invoke(app, ["import", str(folder), "--out", str(tmp_path / "y.h5")])
+    assert result.exit_code == 1 and "no object.png" in result.output
+    table.write_text("file,Fx_N\n")
+    result = runner.invoke(app, ["import", str(folder), "--out", str(tmp_path / "z.h5")])
+    assert result.exit_code == 1 and "missing column(s) Fy_N" in result.output
+
+
+def test_merge_like_with_like(tmp_path):
+    a = make_run(tmp_path / "a.h5", n=10)
+    b = make_run(tmp_path / "b.h5", n=7, seed=1)
+    result = runner.invoke(app, ["merge", str(a), str(b), "--out", str(tmp_path / "m.h5")])
+    assert result.exit_code == 0 and "17 frames from 2 run(s)" in result.output
+    with h5py.File(tmp_path / "m.h5", "r") as m, h5py.File(b, "r") as fb:
+        np.testing.assert_array_equal(m[S.CAPTURE_INDEX][:], np.arange(17))
+        np.testing.assert_array_equal(m[S.FRAMES][10:], fb[S.FRAMES][:])
+    other = make_run(tmp_path / "c.h5", n=5, obj="heart")
+    result = runner.invoke(app, ["merge", str(a), str(other), "--out", str(tmp_path / "n.h5")])
+    assert result.exit_code == 1 and "differ in object" in result.output
+
+
+def test_preview_writes_a_contact_sheet(tmp_path):
+    import cv2
+
+    src = make_run(tmp_path / "src.h5", n=30)
+    result = runner.invoke(app, ["preview", str(src), "--out", str(tmp_path / "p.png"), "--tiles", "12"])
+    assert result.exit_code == 0 and "12 frames" in result.output
+    sheet = cv2.imread(str(tmp_path / "p.png"))
+    assert sheet.shape == (2 * 160, 6 * 160, 3)
