@@ -1,0 +1,60 @@
+"""Evaluation metrics against their definitions and scikit-image; marker error on rendered markers."""
+
+import math
+
+import numpy as np
+import pytest
+
+from model.markers import find_markers, marker_error
+from model.metrics import image_metrics, mae, mse, psnr, ssim
+
+
+@pytest.fixture
+def pair():
+    rng = np.random.default_rng(0)
+    a = rng.integers(0, 256, (64, 80, 3), dtype=np.uint8)
+    b = np.clip(a.astype(int) + rng.normal(0, 12, a.shape), 0, 255).astype(np.uint8)
+    return a, b
+
+
+def test_mse_mae_psnr_definitions(pair):
+    a, b = pair
+    d = a.astype(float) - b
+    assert mse(a, b) == pytest.approx((d**2).mean())
+    assert mae(a, b) == pytest.approx(np.abs(d).mean())
+    assert psnr(a, b) == pytest.approx(10 * math.log10(255**2 / (d**2).mean()))
+    assert psnr(a, a) == math.inf and mse(a, a) == 0
+
+
+def test_ssim_matches_scikit_image_with_the_reference_settings(pair):
+    from skimage.metrics import structural_similarity
+
+    a, b = pair
+    expected = structural_similarity(a, b, gaussian_weights=True, sigma=1.5, use_sample_covariance=False,
+                                     data_range=255, channel_axis=2)
+    assert ssim(a, b) == pytest.approx(expected, abs=1e-6)
+    assert ssim(a, a) == pytest.approx(1.0)
+
+
+def test_shape_mismatch_is_an_error(pair):
+    with pytest.raises(ValueError, match="differ in shape"):
+        image_metrics(pair[0], pair[0][:10])
+
+
+def test_marker_error_measures_a_known_displacement():
+    from rig.sim.contact import Pose
+    from rig.sim.tactile.optics import OpticsSpec
+    from rig.sim.tactile.scene import Scene
+
+    scene = Scene("sphere10mm", "rgb_markers", optics=OpticsSpec(kind="rgb_markers", noise_std=0.0))
+    still = scene.frame(Pose(0, 0, 0.5, 0)).image  # no contact: markers at rest
+    markers = find_markers(still)
+    assert len(markers) == 400  # the whole 20×20 grid is found
+    same = marker_error(still, still)
+    assert same.total_px == pytest.approx(0.0, abs=1e-6) and same.matched == 324
+    shifted = np.roll(still, 2, axis=1)  # every marker 2 px to the right
+    err = marker_error(still, shifted)
+    assert err.per_marker_px == pytest.approx(2.0, abs=0.05) and err.total_px == pytest.approx(648, rel=0.03)
+    pressed = scene.frame(Pose(0.3, 0, -1.0, 0)).image
+    moved = scene.contact.solver.solve(Pose(0.3, 0, -1.0, 0), shift_mm=(0.3, 0.0), fields={"uz", "uxy"})
+    assert marker_error(still, scene.renderer.render(moved.fields)).per_marker_px > marker_error(still, pressed).per_marker_px
