@@ -145,3 +145,21 @@ def test_faster_than_real_time_with_manual_clock():
         rig.move({"x": 2.0}, 0.5)  # 4 s of simulated motion, no real waiting
         assert clock.now() - t0 >= 4.0
         assert rig.axes["x"].position() == pytest.approx(2.0, abs=1e-4)
+
+
+def test_find_contact_on_the_simulated_gel(rig, sim):
+    from rig.contact_search import find_contact
+
+    found = find_contact(rig, threshold_N=0.05, speed_mm_s=1.0, max_travel_mm=8.0)
+    # The gel surface is at z = 0; 0.05 N needs ~0.1 mm of a 10 mm sphere, plus one poll of motion.
+    assert -0.2 < found.z_mm < 0.0 and abs(found.fz_N) >= 0.05
+    assert rig.axes["z"].position() > found.z_mm + 0.4  # lifted clear
+    assert abs(rig.gauge.read_fresh().fz_N) < 0.05
+
+
+def test_find_contact_gives_up_cleanly(rig):
+    from rig.contact_search import find_contact
+    from rig.errors import RigError
+
+    with pytest.raises(RigError, match="no contact down to z"):
+        find_contact(rig, max_travel_mm=2.0)  # starts 5 mm above the gel

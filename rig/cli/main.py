@@ -151,6 +151,27 @@ def zero(
         typer.echo("note: the tare lives in this process; later commands tare again (acquisition does at start)")
 
 
+@app.command("find-contact")
+@friendly_errors
+def find_contact_cmd(
+    threshold: Annotated[float, typer.Option("--threshold-n", help="|Fz| that counts as touching, N.", min=0.001)] = 0.05,
+    speed: Annotated[float, typer.Option(help="Descent speed of the first pass, mm/s (the second is 10x slower).",
+                                         min=0.001)] = 0.5,
+    max_travel: Annotated[float, typer.Option(help="How far down to search from the present z, mm.", min=0.01)] = 10.0,
+    config: ConfigOpt = None,
+    sim: SimOpt = False,
+):
+    """Lower z under the force limits until the indenter touches the gel; print the contact point."""
+    from rig.cli.session import open_rig
+    from rig.contact_search import find_contact
+
+    with open_rig(config, sim, axes=("z",)) as rig:
+        found = find_contact(rig, threshold_N=threshold, speed_mm_s=speed, max_travel_mm=max_travel)
+    typer.echo(f"contact at z = {found.z_mm:.4f} mm (|Fz| = {abs(found.fz_N):.3f} N, resolution "
+               f"{found.resolution_mm * 1000:.1f} µm); z lifted clear")
+    typer.echo(f"use: rig run-protocol NAME --origin X,Y,{found.z_mm:.4f},THETA")
+
+
 @sim_app.command("serve")
 @friendly_errors
 def sim_serve(

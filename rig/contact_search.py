@@ -1,0 +1,55 @@
+"""Find where the indenter touches the gel: the contact point the protocols start from.
+
+Two passes under the armed force limits: a fast descent stops at the first touch;
+then z lifts and comes down again at a tenth of the speed, and the z where |Fz|
+first reaches the threshold is the contact point (a few µm inside the gel: the
+indentation that makes that force, plus the distance moved in one poll). z lifts
+clear afterwards. +z is away from the gel.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from rig.errors import RigError
+
+
+@dataclass(frozen=True)
+class ContactFound:
+    z_mm: float  # axis coordinate of the contact point
+    fz_N: float  # the force that marked it
+    resolution_mm: float  # distance z moves in one poll at the slow speed
+
+
+def _descend_until_touch(rig, z_floor: float, speed: float, threshold_N: float) -> tuple[float, float]:
+    guard = rig.start_move({"z": z_floor}, speed)
+    try:
+        while True:
+            fz = rig.gauge.read().fz_N
+            if abs(fz) >= threshold_N:
+                rig.stop_all()
+                return rig.axes["z"].position(), fz
+            if not rig.monitor(("z",), guard, "contact search"):
+                raise RigError(f"no contact down to z = {z_floor:.3f} mm (|Fz| stayed below {threshold_N} N); "
+                               "start lower or allow more travel")
+            rig.clock.sleep(rig.config.safety.poll_s)
+    except BaseException:
+        rig.stop_all()
+        raise
+
+
+def find_contact(rig, *, threshold_N: float = 0.05, speed_mm_s: float = 0.5, max_travel_mm: float = 10.0,
+                 backoff_mm: float = 0.5) -> ContactFound:
+    """Search downwards from the present z (which must be clear of the gel)."""
+    if threshold_N <= 0 or speed_mm_s <= 0 or max_travel_mm <= 0:
+        raise RigError("threshold, speed and travel must be > 0")
+    z_start = rig.axes["z"].position()
+    low = rig.config.axes["z"].travel[0]
+    z_floor = max(low, z_start - max_travel_mm)
+    rig.tare(20)  # clear of the gel: this is the unloaded reading
+    z_touch, _ = _descend_until_touch(rig, z_floor, speed_mm_s, threshold_N)
+    rig.move({"z": min(z_touch + backoff_mm, z_start)}, speed_mm_s)
+    slow = speed_mm_s / 10
+    z_contact, fz = _descend_until_touch(rig, max(low, z_touch - backoff_mm), slow, threshold_N)
+    rig.move({"z": min(z_contact + backoff_mm, z_start)}, speed_mm_s)
+    return ContactFound(z_contact, fz, slow * rig.config.safety.poll_s)
