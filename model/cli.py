@@ -6,6 +6,7 @@ import sys
 
 
 def main() -> None:
-    print("train: not yet built — training, generation and evaluation arrive with the model issue. "
-          "Available now: `rig` (see README.md).", file=sys.stderr)
+    print("train: not yet built — the trainer, checkpoints and reports arrive with the model issue "
+          "(the denoiser, loss, samplers and metrics are in model/). Available now: `rig`, `dataset`.",
+          file=sys.stderr)
     raise SystemExit(2)
