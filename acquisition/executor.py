@@ -23,7 +23,7 @@ import numpy as np
 from acquisition import schema as S
 from acquisition.run_file import RunFileError, RunHeader, RunWriter
 from protocols.plan import AXES, PHASES, Plan, Step
-from rig.errors import DeviceError, DeviceTimeout, ForceLimitExceeded, RigError, SafetyError
+from rig.errors import DeviceError, ForceLimitExceeded, RigError, SafetyError
 from rig.safety import check_speed, check_target
 
 log = logging.getLogger("acquisition")

@@ -12,7 +12,7 @@ import numpy as np
 
 from rig.sim.contact import Pose
 from rig.sim.tactile.indenters import get_indenter
-from rig.sim.tactile.optics import SENSOR_KINDS, OpticsSpec
+from rig.sim.tactile.optics import SENSOR_KINDS
 from rig.sim.tactile.scene import Scene
 
 INDENTERS = ("sphere4mm", "sphere10mm", "sphere15mm", "circle8mm", "square", "ring", "heart", "woven", "irregular")

@@ -10,7 +10,6 @@ phase, and what a forces-only frame costs.
 
 from __future__ import annotations
 
-import math
 import os
 import platform
 import statistics

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 
 CONDITIONINGS = ("plane", "embedding", "plane+embedding")
 

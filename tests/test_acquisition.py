@@ -1,6 +1,5 @@
 """Protocol runs on the simulated rig, end to end, through the real drivers over ptys."""
 
-import dataclasses
 import os
 import signal
 import subprocess

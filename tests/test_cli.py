@@ -1,6 +1,5 @@
 """The `rig` command line, on the built-in simulated rig."""
 
-import os
 import signal
 import subprocess
 import sys

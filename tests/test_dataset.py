@@ -65,7 +65,7 @@ def test_frame_split_is_reproducible_disjoint_and_complete(runs, tmp_path, ratio
 
 @pytest.mark.parametrize("by", ["run", "object"])
 def test_grouped_split_never_shares(runs, tmp_path, by):
-    s = make_split(runs, "1:1", tmp_path / by, seed=1, by=by)
+    make_split(runs, "1:1", tmp_path / by, seed=1, by=by)
     manifest, parts = load_split(tmp_path / by)
     key = (lambda r: manifest["runs"][r]["path"]) if by == "run" else (lambda r: manifest["runs"][r]["object"])
     train = {key(r) for r in parts["train"][:, 0]}

@@ -1,6 +1,5 @@
 """The sensor optics and scenes: what changes in a frame, markers, computing only what is needed."""
 
-import math
 from pathlib import Path
 
 import numpy as np

@@ -64,7 +64,7 @@ def _terminate_as_interrupt(*_):
 
 def run_protocol(name: str, *, out: Path | None, resume: Path | None, dry_run: bool, config: Path | None,
                  sim: bool, origin: tuple[float, float, float, float]) -> None:
-    from acquisition.executor import Acquisition, disk_bytes, preflight
+    from acquisition.executor import disk_bytes, preflight
     from protocols.plan import AXES, Plan
     from protocols.spec import load_protocol
 

@@ -32,7 +32,7 @@ class M8128Sim:
             try:
                 rate = int(cmd.split("=", 1)[1])
             except ValueError:
-                return [f"ACK+SMPF=ERROR$ERROR\r\n".encode()]
+                return ["ACK+SMPF=ERROR$ERROR\r\n".encode()]
             if not 1 <= rate <= 2000:
                 return [f"ACK+SMPF={rate}$ERROR\r\n".encode()]
             self.rate_hz = rate
