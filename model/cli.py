@@ -1,12 +1,53 @@
-"""``train``: the contact-condition-guided diffusion model (issue 6; not yet built)."""
+"""``train``: the contact-condition-guided diffusion model on a dataset split.
+
+Not yet: validation sample PNGs, several GPUs through accelerate, `generate` and
+`evaluate` (the model issue is open).
+"""
 
 from __future__ import annotations
 
-import sys
+from pathlib import Path
+from typing import Annotated, Optional
+
+import typer
+
+app = typer.Typer(add_completion=False)
+
+
+@app.command()
+def train(
+    data: Annotated[Path, typer.Option(help="A split directory from `dataset split` (split.json + index files).")],
+    out: Annotated[Path, typer.Option(help="Run directory: checkpoint/ (safetensors) is written here.")],
+    preset: Annotated[str, typer.Option(help="Model size: tiny (CPU, 32 px) or paper (GPU, 256 px).")] = "tiny",
+    steps: Annotated[int, typer.Option(help="Optimisation steps in all.", min=1)] = 2000,
+    batch_size: Annotated[int, typer.Option(help="Images per step.", min=1)] = 16,
+    lr: Annotated[float, typer.Option(help="Adam learning rate.", min=0.0)] = 2e-4,
+    checkpoint_every: Annotated[int, typer.Option(help="Steps between checkpoints.", min=1)] = 500,
+    seed: Annotated[int, typer.Option(help="Seed of the weights, the data order and the noise.")] = 0,
+    resume: Annotated[bool, typer.Option(help="Continue from OUT/checkpoint exactly where it stopped.")] = False,
+    device: Annotated[Optional[str], typer.Option(help="cpu or cuda (default: cuda when available).")] = None,
+):
+    """Train the denoiser; progress shows the loss and images/s; checkpoints are safetensors."""
+    import torch
+
+    from dataset.split import SplitError
+    from model.config import preset as make_preset
+    from model.trainer import CheckpointError, TrainConfig, Trainer
+
+    try:
+        model_cfg = make_preset(preset)
+        cfg = TrainConfig(steps=steps, batch_size=batch_size, lr=lr, checkpoint_every=checkpoint_every, seed=seed)
+        trainer = Trainer(model_cfg, cfg, data, out, device=device or ("cuda" if torch.cuda.is_available() else "cpu"),
+                          log=typer.echo)
+        if resume:
+            trainer.resume()
+            typer.echo(f"resumed at step {trainer.step}")
+        trainer.train()
+        typer.echo(f"checkpoint: {trainer.save()}")
+    except (KeyError, ValueError, SplitError, CheckpointError, FileNotFoundError) as exc:
+        typer.secho(f"error: {exc}", fg=typer.colors.RED, err=True)
+        raise typer.Exit(1)
 
 
 def main() -> None:
-    print("train: not yet built — the trainer, checkpoints and reports arrive with the model issue "
-          "(the denoiser, loss, samplers and metrics are in model/). Available now: `rig`, `dataset`.",
-          file=sys.stderr)
-    raise SystemExit(2)
+    app()

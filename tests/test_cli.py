@@ -101,8 +101,8 @@ def test_sim_serve_then_status_from_another_process(tmp_path):
         server.wait(timeout=10)
 
 
-def test_later_commands_say_not_yet():
+def test_train_reports_bad_input_in_one_line(tmp_path):
     bindir = Path(sys.executable).parent
-    for command in (["train"],):
-        result = subprocess.run([str(bindir / command[0]), *command[1:]], capture_output=True, text=True)
-        assert result.returncode == 2 and "not yet built" in result.stderr, command
+    result = subprocess.run([str(bindir / "train"), "--data", str(tmp_path / "nowhere"), "--out", str(tmp_path / "r")],
+                            capture_output=True, text=True)
+    assert result.returncode == 1 and "no split.json" in result.stderr and "Traceback" not in result.stderr

@@ -87,3 +87,44 @@ def test_presets_and_config_errors():
         ModelConfig(image_size=30, block_out_channels=(8, 16, 32))
     with pytest.raises(ValueError, match="conditioning"):
         ModelConfig(conditioning="telepathy")
+
+
+def make_split_dir(tmp_path, n=24, size=16):
+    """A small real split: run files via RunWriter, split 8:2."""
+    import numpy as np
+
+    from acquisition.run_file import RunHeader, RunWriter
+    from dataset.split import make_split
+    from protocols.plan import PHASES
+    from rig.sim.tactile.indenters import get_indenter
+
+    rng = np.random.default_rng(0)
+    header = RunHeader("t", "", "", "sphere10mm", "", "rgb", 14 / size, 1.0, n, (0, 0, 0, 0), PHASES)
+    w = RunWriter.create(tmp_path / "r.h5", header, (size, size, 3), get_indenter("sphere10mm").object_image(size, 14 / size),
+                         np.zeros((size, size, 3), np.uint8))
+    for i in range(n):
+        w.append(rng.integers(0, 256, (size, size, 3), dtype=np.uint8), wrench=rng.normal(size=6),
+                 pose_commanded=np.zeros(4), pose_measured=np.array([0.1 * i, 0, -1, 0]), t_frame_s=float(i),
+                 t_capture_s=float(i), wrench_skew_s=0.0, capture_index=i, step_index=0, phase_index=1, level=1)
+    w.set_status("complete")
+    w.close()
+    make_split([tmp_path / "r.h5"], "8:2", tmp_path / "split")
+    return tmp_path / "split"
+
+
+def test_resume_continues_with_the_same_losses(tmp_path):
+    from model.trainer import CheckpointError, TrainConfig, Trainer
+
+    split = make_split_dir(tmp_path)
+    cfg = TrainConfig(steps=8, batch_size=4, checkpoint_every=4, seed=3)
+    straight = Trainer(SMALL, cfg, split, tmp_path / "a", log=lambda m: None).train()
+    first = Trainer(SMALL, cfg, split, tmp_path / "b", log=lambda m: None)
+    first.train(until=4)  # saves a checkpoint at step 4
+    second = Trainer(SMALL, cfg, split, tmp_path / "b", log=lambda m: None)
+    second.resume()
+    assert second.step == 4
+    resumed = second.train()
+    assert resumed == pytest.approx(straight, rel=1e-5)  # same data order, noise, optimizer state
+    other = ModelConfig(**{**SMALL.__dict__, "block_out_channels": (16, 16)})
+    with pytest.raises(CheckpointError, match="different model config"):
+        Trainer(other, cfg, split, tmp_path / "b", log=lambda m: None).resume()
