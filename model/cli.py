@@ -49,5 +49,54 @@ def train(
         raise typer.Exit(1)
 
 
+generate_app = typer.Typer(add_completion=False)
+
+
+def _numbers(text: str, n: int, what: str) -> list[float]:
+    try:
+        values = [float(v) for v in text.split(",")]
+    except ValueError:
+        raise typer.BadParameter(f"{what}: expected {n} comma-separated numbers, got {text!r}") from None
+    if len(values) != n:
+        raise typer.BadParameter(f"{what}: expected {n} comma-separated numbers, got {len(values)} in {text!r}")
+    return values
+
+
+@generate_app.command()
+def generate(
+    checkpoint: Annotated[Path, typer.Option(help="A run directory written by `train`.")],
+    object_image: Annotated[Path, typer.Option("--object", help="The object's contact face (PNG/JPEG).")],
+    wrench: Annotated[str, typer.Option(help="Fx,Fy,Fz (N),Mx,My,Mz (N·mm).")],
+    out: Annotated[Path, typer.Option(help="The generated tactile frame (PNG).")],
+    pose: Annotated[str, typer.Option(help="x,y (mm),theta (deg) of the object on the sensor.")] = "0,0,0",
+    steps: Annotated[int, typer.Option(help="Sampler steps.", min=1, max=1000)] = 50,
+    sampler: Annotated[str, typer.Option(help="ddim, ddpm or dpm.")] = "ddim",
+    seed: Annotated[int, typer.Option(help="Noise seed: the same seed gives the same frame.")] = 0,
+):
+    """Generate a tactile frame for an object image, a wrench and a pose."""
+    import cv2
+
+    from model.inference import TrainedModel
+    from model.trainer import CheckpointError
+
+    w = _numbers(wrench, 6, "--wrench")
+    p = _numbers(pose, 3, "--pose")
+    img = cv2.imread(str(object_image), cv2.IMREAD_COLOR)
+    if img is None:
+        typer.secho(f"error: {object_image}: cannot read the object image", fg=typer.colors.RED, err=True)
+        raise typer.Exit(1)
+    try:
+        frame = TrainedModel.load(checkpoint).generate(img, w, p, steps=steps, sampler=sampler, seed=seed)
+    except (CheckpointError, ValueError) as exc:
+        typer.secho(f"error: {exc}", fg=typer.colors.RED, err=True)
+        raise typer.Exit(1)
+    cv2.imwrite(str(out), frame)
+    typer.echo(f"{out}: {frame.shape[1]}x{frame.shape[0]}")
+
+
 def main() -> None:
     app()
+
+
+def generate_main() -> None:
+    generate_app()

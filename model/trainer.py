@@ -109,7 +109,10 @@ class Trainer:
         tensors["noise_generator_state"] = self.noise.get_state()
         save_file(tensors, str(ck / "optimizer.safetensors"))
         meta = {"step": self.step, "model": dataclasses.asdict(self.model_cfg), "train": dataclasses.asdict(self.cfg),
-                "param_groups": opt["param_groups"], "losses": self.losses}
+                "param_groups": opt["param_groups"], "losses": self.losses,
+                # what inference needs to condition like training did
+                "wrench_mean": self.data.manifest["wrench_mean"], "wrench_std": self.data.manifest["wrench_std"],
+                "mm_per_px": self.data.mm_per_px[0]}
         (ck / "state.json").write_text(json.dumps(meta))
         return ck
 

@@ -128,3 +128,25 @@ def test_resume_continues_with_the_same_losses(tmp_path):
     other = ModelConfig(**{**SMALL.__dict__, "block_out_channels": (16, 16)})
     with pytest.raises(CheckpointError, match="different model config"):
         Trainer(other, cfg, split, tmp_path / "b", log=lambda m: None).resume()
+
+
+def test_generate_from_a_trained_run(tmp_path):
+    import numpy as np
+
+    from model.inference import TrainedModel
+    from model.trainer import CheckpointError, TrainConfig, Trainer
+
+    split = make_split_dir(tmp_path)
+    trainer = Trainer(SMALL, TrainConfig(steps=3, batch_size=4, checkpoint_every=100), split, tmp_path / "run",
+                      log=lambda m: None)
+    trainer.train()
+    trainer.save()
+    model = TrainedModel.load(tmp_path / "run")
+    obj = np.full((40, 40, 3), 200, np.uint8)
+    a = model.generate(obj, [0, 0, 2, 0, 0, 0], (0.2, 0.0, 5.0), steps=4, seed=1)
+    b = model.generate(obj, [0, 0, 2, 0, 0, 0], (0.2, 0.0, 5.0), steps=4, seed=1)
+    assert a.shape == (16, 16, 3) and a.dtype == np.uint8 and np.array_equal(a, b)
+    with pytest.raises(ValueError, match="six finite numbers"):
+        model.generate(obj, [0, 0, float("nan"), 0, 0, 0])
+    with pytest.raises(CheckpointError, match="no checkpoint"):
+        TrainedModel.load(tmp_path / "elsewhere")
