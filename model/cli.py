@@ -94,9 +94,45 @@ def generate(
     typer.echo(f"{out}: {frame.shape[1]}x{frame.shape[0]}")
 
 
+evaluate_app = typer.Typer(add_completion=False)
+
+
+@evaluate_app.command()
+def evaluate(
+    checkpoint: Annotated[Path, typer.Option(help="A run directory written by `train`.")],
+    split: Annotated[Path, typer.Option(help="The split directory; its test part is evaluated.")],
+    out: Annotated[Path, typer.Option(help="Folder for report.md and metrics.json.")],
+    settings: Annotated[str, typer.Option(help="Sampler settings as sampler:steps, comma-separated.")] = "ddim:50",
+    limit: Annotated[Optional[int], typer.Option(help="Evaluate at most this many test frames.", min=1)] = None,
+    markers: Annotated[bool, typer.Option(help="Also the marker displacement error (marker sensors).")] = False,
+    seed: Annotated[int, typer.Option(help="Noise seed.")] = 0,
+):
+    """MSE, MAE, SSIM, PSNR (and marker error) per sampler setting, against seconds per image."""
+    from model.evaluate import evaluate as run, report
+    from model.trainer import CheckpointError
+
+    try:
+        pairs = [(s.split(":")[0], int(s.split(":")[1])) for s in settings.split(",")]
+    except (IndexError, ValueError):
+        raise typer.BadParameter(f"--settings: expected sampler:steps[,sampler:steps...], got {settings!r}") from None
+    try:
+        rows = run(checkpoint, split, settings=pairs, limit=limit, markers=markers, seed=seed)
+    except (CheckpointError, ValueError, KeyError) as exc:
+        typer.secho(f"error: {exc}", fg=typer.colors.RED, err=True)
+        raise typer.Exit(1)
+    for r in rows:
+        typer.echo(f"{r.setting}: MSE {r.mse:.2f}  MAE {r.mae:.2f}  SSIM {r.ssim:.3f}  PSNR {r.psnr:.2f}  "
+                   f"{r.seconds_per_image:.3f} s/image")
+    typer.echo(f"report: {report(rows, out, title=f'Evaluation of {checkpoint} on {split}')}")
+
+
 def main() -> None:
     app()
 
 
 def generate_main() -> None:
     generate_app()
+
+
+def evaluate_main() -> None:
+    evaluate_app()

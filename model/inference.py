@@ -34,6 +34,10 @@ class TrainedModel:
         if not (ck / "state.json").exists():
             raise CheckpointError(f"{ck}: no checkpoint (train one with `train --out {run_dir}`)")
         meta = json.loads((ck / "state.json").read_text())
+        missing = [k for k in ("wrench_mean", "wrench_std", "mm_per_px") if k not in meta]
+        if missing:
+            raise CheckpointError(f"{ck}: has no conditioning statistics ({', '.join(missing)}): it predates them; "
+                                  "train on (with --resume) to write a complete checkpoint")
         cfg = ModelConfig(**{k: tuple(v) if isinstance(v, list) else v for k, v in meta["model"].items()})
         net = ContactDenoiser(cfg)
         try:

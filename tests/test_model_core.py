@@ -150,3 +150,20 @@ def test_generate_from_a_trained_run(tmp_path):
         model.generate(obj, [0, 0, float("nan"), 0, 0, 0])
     with pytest.raises(CheckpointError, match="no checkpoint"):
         TrainedModel.load(tmp_path / "elsewhere")
+
+
+def test_evaluate_writes_the_metrics_table(tmp_path):
+    from model.evaluate import evaluate, report
+    from model.trainer import TrainConfig, Trainer
+
+    split = make_split_dir(tmp_path)
+    trainer = Trainer(SMALL, TrainConfig(steps=2, batch_size=4, checkpoint_every=100), split, tmp_path / "run",
+                      log=lambda m: None)
+    trainer.train()
+    trainer.save()
+    rows = evaluate(tmp_path / "run", split, settings=(("ddim", 3), ("ddpm", 4)), limit=3)
+    assert [r.setting for r in rows] == ["ddim, 3 steps", "ddpm, 4 steps"]
+    for r in rows:
+        assert r.images == 3 and r.mse > 0 and 0 < r.psnr < 60 and -1 <= r.ssim <= 1 and r.seconds_per_image > 0
+    text = report(rows, tmp_path / "report", title="test").read_text()
+    assert "| this model (ddim, 3 steps, 3 images) |" in text and "| paper, RGB light (paper's table, real data) | 21.0 |" in text
