@@ -130,18 +130,26 @@ def test_resume_continues_with_the_same_losses(tmp_path):
         Trainer(other, cfg, split, tmp_path / "b", log=lambda m: None).resume()
 
 
+def trained_run(tmp_path, steps):
+    """A split and a tiny run trained on it for ``steps`` steps, saved: (split dir, run dir)."""
+    from model.trainer import TrainConfig, Trainer
+
+    split = make_split_dir(tmp_path)
+    trainer = Trainer(SMALL, TrainConfig(steps=steps, batch_size=4, checkpoint_every=100), split, tmp_path / "run",
+                      log=lambda m: None)
+    trainer.train()
+    trainer.save()
+    return split, tmp_path / "run"
+
+
 def test_generate_from_a_trained_run(tmp_path):
     import numpy as np
 
     from model.inference import TrainedModel
-    from model.trainer import CheckpointError, TrainConfig, Trainer
+    from model.trainer import CheckpointError
 
-    split = make_split_dir(tmp_path)
-    trainer = Trainer(SMALL, TrainConfig(steps=3, batch_size=4, checkpoint_every=100), split, tmp_path / "run",
-                      log=lambda m: None)
-    trainer.train()
-    trainer.save()
-    model = TrainedModel.load(tmp_path / "run")
+    _, run = trained_run(tmp_path, 3)
+    model = TrainedModel.load(run)
     obj = np.full((40, 40, 3), 200, np.uint8)
     a = model.generate(obj, [0, 0, 2, 0, 0, 0], (0.2, 0.0, 5.0), steps=4, seed=1)
     b = model.generate(obj, [0, 0, 2, 0, 0, 0], (0.2, 0.0, 5.0), steps=4, seed=1)
@@ -154,14 +162,9 @@ def test_generate_from_a_trained_run(tmp_path):
 
 def test_evaluate_writes_the_metrics_table(tmp_path):
     from model.evaluate import evaluate, report
-    from model.trainer import TrainConfig, Trainer
 
-    split = make_split_dir(tmp_path)
-    trainer = Trainer(SMALL, TrainConfig(steps=2, batch_size=4, checkpoint_every=100), split, tmp_path / "run",
-                      log=lambda m: None)
-    trainer.train()
-    trainer.save()
-    rows = evaluate(tmp_path / "run", split, settings=(("ddim", 3), ("ddpm", 4)), limit=3)
+    split, run = trained_run(tmp_path, 2)
+    rows = evaluate(run, split, settings=(("ddim", 3), ("ddpm", 4)), limit=3)
     assert [r.setting for r in rows] == ["ddim, 3 steps", "ddpm, 4 steps"]
     for r in rows:
         assert r.images == 3 and r.mse > 0 and 0 < r.psnr < 60 and -1 <= r.ssim <= 1 and r.seconds_per_image > 0
