@@ -43,12 +43,13 @@ class SimulatedRig:
         self.world = SimWorld(self.clock, spec, contact=contact, seed=seed)
         self.sensor_kind = sensor_kind
         self.triggered_camera = False  # acquisition sets it: frames only on capture
-        # The simulated gauge's latency bound in clock seconds: a contact solve (up to
-        # ~60 ms of real time) stretched by the clock's speed-up, plus a tick.
-        factor = getattr(self.clock, "factor", None)
-        # A manual (discrete-event) clock has the devices emit synchronously on each
-        # advance: a sample stamped now is from now.
-        self.gauge_latency_s = 0.0 if factor is None else round(max(0.05, 0.08 * factor), 3)
+        # A discrete-event (manual) clock has the devices emit synchronously on each
+        # advance: a sample stamped now is from now. Otherwise the gauge's latency bound
+        # in clock seconds: a contact solve (up to ~60 ms of real time) stretched by the
+        # clock's speed-up, plus a tick.
+        self.discrete_time = hasattr(self.clock, "add_listener")
+        factor = getattr(self.clock, "factor", 1.0)
+        self.gauge_latency_s = 0.0 if self.discrete_time else round(max(0.05, 0.08 * factor), 3)
         self.gauge_kind = gauge
         stages = self.world.stages
         self.zaber = ZaberChainSim(self.clock, {
@@ -62,7 +63,7 @@ class SimulatedRig:
                                               transport=transport, name="pr-drive")
             model = (Ft300Sim(self.world, rate_hz=gauge_rate_hz) if gauge == "ft300"
                      else M8128Sim(self.world, rate_hz=gauge_rate_hz))
-            model.schedule.report_on_advance = not hasattr(self.clock, "factor") and hasattr(self.clock, "advance")
+            model.schedule.report_on_advance = self.discrete_time
             self.servers["gauge"] = SimServer(model, self.clock, transport=transport, name=gauge)
         except Exception:
             self.close()
