@@ -22,7 +22,7 @@ import numpy as np
 
 from acquisition import schema as S
 from acquisition.run_file import RunFileError, RunHeader, RunWriter
-from protocols.plan import AXES, PHASES, Plan, Step
+from protocols.plan import AXES, PHASES, Plan
 from rig.errors import DeviceError, ForceLimitExceeded, RigError, SafetyError
 from rig.safety import check_speed, check_target
 
@@ -254,19 +254,17 @@ class Acquisition:
                 start_step(next_step)
                 next_step += 1
             if now >= next_monitor - 1e-9:
-                moving = rig.monitor(moving, guard, "protocol") if moving else moving
-                if not moving:
-                    rig.guard.check(rig.gauge.read())
+                # With nothing moving this is the plain force check under the rig's own limits.
+                moving = rig.monitor(moving, guard if moving else rig.guard, "protocol")
                 next_monitor = now + self.monitor_interval_s
             if now >= t_capture - 1e-9:
-                self._capture(writer, k, t_capture, moving, steps, starts, result)
+                self._capture(writer, k, t_capture, moving, result)
                 k += 1
         while moving:  # let the last step finish under the guard
             moving = rig.monitor(moving, guard, "protocol")
             clock.sleep(self.monitor_interval_s)
 
-    def _capture(self, writer: RunWriter, k: int, t_trigger: float, moving: set[str], steps: list[Step],
-                 starts: list[float], result: RunResult) -> None:
+    def _capture(self, writer: RunWriter, k: int, t_trigger: float, moving: set[str], result: RunResult) -> None:
         t_prot = self.plan.capture_time(k)
         frame = self._capture_frame(t_trigger)
         wrench, skew = self.rig.gauge.sample_at(frame.t_s)

@@ -21,12 +21,28 @@ from dataset.condition import normalise_wrench, place_object
 from dataset.split import load_split
 
 
+def image_to_tensor(bgr: np.ndarray) -> torch.Tensor:
+    """(H, W, 3) BGR uint8 → (3, H, W) RGB uint8."""
+    return torch.from_numpy(np.ascontiguousarray(bgr[..., ::-1].transpose(2, 0, 1)))
+
+
+def scale_images(images: torch.Tensor) -> torch.Tensor:
+    """uint8 0–255 → float in [−1, 1]."""
+    return images.float().div_(127.5).sub_(1.0)
+
+
+def tensor_to_image(image: torch.Tensor) -> np.ndarray:
+    """(3, H, W) RGB in [−1, 1] → (H, W, 3) BGR uint8."""
+    rgb = ((image.detach().cpu().numpy().transpose(1, 2, 0) + 1) * 127.5).round().clip(0, 255).astype(np.uint8)
+    return np.ascontiguousarray(rgb[..., ::-1])
+
+
 def to_model_inputs(batch: dict, device=None) -> dict:
     """uint8 images → float in [−1, 1] on ``device`` (the GPU, in training): 4× less data
     crosses from the loader's workers than if they sent floats."""
     out = dict(batch)
     for key in ("condition", "tactile"):
-        out[key] = batch[key].to(device, non_blocking=True).float().div_(127.5).sub_(1.0)
+        out[key] = scale_images(batch[key].to(device, non_blocking=True))
     out["wrench"] = batch["wrench"].to(device, non_blocking=True)
     return out
 
@@ -65,7 +81,7 @@ class TactileDataset(Dataset):
     def _to_tensor(self, bgr: np.ndarray) -> torch.Tensor:
         if bgr.shape[0] != self.size:
             bgr = cv2.resize(bgr, (self.size, self.size), interpolation=cv2.INTER_AREA)
-        return torch.from_numpy(np.ascontiguousarray(bgr[..., ::-1].transpose(2, 0, 1)))
+        return image_to_tensor(bgr)
 
     def __getitem__(self, i: int) -> dict:
         run, frame = (int(v) for v in self.rows[i])

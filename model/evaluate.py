@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from dataset.torch_dataset import TactileDataset
+from dataset.torch_dataset import TactileDataset, scale_images, tensor_to_image
 from model.inference import TrainedModel
 from model.markers import marker_error
 from model.metrics import image_metrics
@@ -42,11 +42,6 @@ class Row:
     images: int
 
 
-def _to_bgr(t: torch.Tensor) -> np.ndarray:
-    rgb = ((t.cpu().numpy().transpose(1, 2, 0) + 1) * 127.5).round().clip(0, 255).astype(np.uint8)
-    return np.ascontiguousarray(rgb[..., ::-1])
-
-
 def evaluate(run_dir: str | Path, split_dir: str | Path, *, part: str = "test", settings=(("ddim", 50),),
              limit: int | None = None, seed: int = 0, markers: bool = False, device: str = "cpu") -> list[Row]:
     model = TrainedModel.load(run_dir, device=device)
@@ -55,7 +50,7 @@ def evaluate(run_dir: str | Path, split_dir: str | Path, *, part: str = "test", 
     if n == 0:
         raise ValueError(f"{split_dir}: the {part} part is empty")
     items = [data[i] for i in range(n)]
-    cond = torch.stack([it["condition"] for it in items]).float().div(127.5).sub(1).to(model.device)
+    cond = scale_images(torch.stack([it["condition"] for it in items]).to(model.device))
     wrench = torch.stack([it["wrench"] for it in items]).to(model.device)
     real = [it["tactile"].numpy().transpose(1, 2, 0)[..., ::-1] for it in items]
     rows = []
@@ -64,7 +59,7 @@ def evaluate(run_dir: str | Path, split_dir: str | Path, *, part: str = "test", 
         t0 = time.perf_counter()
         out = model.diffusion.sample(model.net, cond, wrench, steps=steps, sampler=sampler, generator=g)
         seconds = (time.perf_counter() - t0) / n
-        generated = [_to_bgr(x) for x in out]
+        generated = [tensor_to_image(x) for x in out]
         metrics = [image_metrics(r, gimg) for r, gimg in zip(real, generated)]
         marker = None
         if markers:

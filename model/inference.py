@@ -12,6 +12,7 @@ import torch
 from safetensors.torch import load_file
 
 from dataset.condition import normalise_wrench, place_object
+from dataset.torch_dataset import image_to_tensor, scale_images, tensor_to_image
 from model.config import ModelConfig
 from model.diffusion import Diffusion
 from model.network import ContactDenoiser
@@ -57,10 +58,9 @@ class TrainedModel:
         s = self.cfg.image_size
         square = cv2.resize(object_bgr, (max(object_bgr.shape[:2]),) * 2)
         placed = place_object(square, pose[0], pose[1], pose[2], self.mm_per_px * s / square.shape[0], size=s)
-        cond = torch.from_numpy(np.ascontiguousarray(placed[..., ::-1].transpose(2, 0, 1))).float()[None] / 127.5 - 1
+        cond = scale_images(image_to_tensor(placed)[None])
         w = torch.from_numpy(normalise_wrench(wrench, self.wrench_mean, self.wrench_std).astype(np.float32))[None]
         g = torch.Generator(device=self.device).manual_seed(seed)
         out = self.diffusion.sample(self.net, cond.to(self.device), w.to(self.device), steps=steps, sampler=sampler,
                                     guidance=guidance, generator=g)[0]
-        rgb = ((out.cpu().numpy().transpose(1, 2, 0) + 1) * 127.5).round().clip(0, 255).astype(np.uint8)
-        return np.ascontiguousarray(rgb[..., ::-1])
+        return tensor_to_image(out)

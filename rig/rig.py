@@ -110,7 +110,10 @@ class Rig:
 
         The caller must call ``monitor`` until the axes are idle (``move`` does).
         """
-        speeds = self.check_targets(targets, speed)
+        return self._start(targets, self.check_targets(targets, speed))
+
+    def _start(self, targets: dict[str, float], speeds: dict[str, float]) -> ForceGuard:
+        """Start checked moves; returns the guard to monitor with."""
         guard = self._guard_for(targets)
         try:
             for name, target in targets.items():
@@ -151,7 +154,7 @@ class Rig:
         started = self.clock.now()
         try:
             starts = {name: self.axes[name].position() for name in targets}
-            guard = self.start_move(targets, speeds)
+            guard = self._start(targets, speeds)
             if timeout_s is None:
                 timeout_s = 5.0 + 2.0 * max(abs(targets[n] - starts[n]) / speeds[n] for n in targets)
             self._wait(tuple(targets), started + timeout_s, f"move to {targets}", guard)

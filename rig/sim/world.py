@@ -6,7 +6,6 @@ the wrench the gauge simulators report, and (later) the surface the camera rende
 
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -59,10 +58,6 @@ class SimWorld:
             contact = ElastomerContact("sphere10mm")
         self.contact = contact
         self._last_true: tuple[float, np.ndarray] | None = None
-        self._last_solve_real = 0.0
-        # At most one contact solve per this much real time for the gauge streams:
-        # a 100x clock would otherwise ask for a solve per 5 ms tick.
-        self.min_solve_interval_s = 0.0
         self.stages = {
             name: SimStage(name, self.spec.stages[name], position=self.spec.start[name])
             for name in AXES
@@ -95,12 +90,7 @@ class SimWorld:
         if not times:
             return np.zeros((0, 6))
         t_end = times[-1]
-        now_real = time.monotonic()
-        if self._last_true is not None and now_real - self._last_solve_real < self.min_solve_interval_s:
-            end = self._last_true[1]  # throttled: hold the last solve (a scaled clock asks too often)
-        else:
-            end = self.true_wrench(t_end)
-            self._last_solve_real = now_real
+        end = self.true_wrench(t_end)
         start_t, start = self._last_true if self._last_true is not None else (t_end, end)
         self._last_true = (t_end, end)
         out = np.empty((len(times), 6))

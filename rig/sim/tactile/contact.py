@@ -113,7 +113,7 @@ class TactileContact:
         interference = h < d
         if not interference.any():
             out.solve_ms = (time.perf_counter() - t0) * 1e3
-            return self._with_fields(out, fields)
+            return self.add_fields(out, fields)
         crop = self._crop(interference)
         hc = h[crop]
         Xc, Yc = self.X[crop], self.Y[crop]
@@ -137,15 +137,12 @@ class TactileContact:
         lever = self.geometry.gauge_lever_mm
         out.wrench = np.array([fx, fy, fz, mx + lever * fy, my - lever * fx, mz])
         out.normal, out.tangential, out.crop = normal, tangential, crop
-        out = self._with_fields(out, fields)
+        out = self.add_fields(out, fields)
         out.solve_ms = (time.perf_counter() - t0) * 1e3
         return out
 
     def add_fields(self, out: ContactResult, fields) -> ContactResult:
-        """Compute further displacement fields for an existing solve."""
-        return self._with_fields(out, fields)
-
-    def _with_fields(self, out: ContactResult, fields) -> ContactResult:
+        """Compute the displacement fields named in ``fields`` for a solve (also an earlier one)."""
         ny, nx = self.X.shape
         if not fields:
             return out
