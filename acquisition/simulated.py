@@ -16,6 +16,7 @@ from rig.rig import Rig
 from rig.sim.rig_sim import SimulatedRig
 
 GAUGE_RATE_HZ = 10.0  # simulated time; the run samples the wrench at the capture rate
+RIG_CONFIG_MARK = "# built-in simulated rig (rig run-protocol --sim)"  # first line of a simulated run's rig_config
 
 
 @contextlib.contextmanager
@@ -29,7 +30,7 @@ def simulated_rig_for(protocol, *, safety: SafetyConfig | None = None, transport
         if safety is not None:
             cfg = dataclasses.replace(cfg, safety=safety)
         geometry = simulated.world.contact.solver.geometry
-        header = {"rig_config": "# built-in simulated rig (rig run-protocol --sim)\n" + simulated.config_toml(),
+        header = {"rig_config": RIG_CONFIG_MARK + "\n" + simulated.config_toml(),
                   "mm_per_px": geometry.width_mm / cfg.camera.width}
         with Rig.open(cfg, clock, camera=True, sim=simulated) as rig:
             yield rig, simulated, header

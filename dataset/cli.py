@@ -110,9 +110,9 @@ def export(path: Annotated[Path, typer.Argument(help="A run file.")],
 @friendly
 def import_(folder: Annotated[Path, typer.Argument(help="A folder in the export format (docs/dataset.md).")],
             out: Annotated[Path, typer.Option(help="The run file to write; must not exist.")],
-            mm_per_px: Annotated[Optional[float], typer.Option(help="Frame calibration, mm per pixel (else run.json's).",
+            mm_per_px: Annotated[Optional[float], typer.Option(help="Frame calibration, mm per pixel (default: run.json's).",
                                                                min=1e-5)] = None,
-            object_name: Annotated[Optional[str], typer.Option("--object", help="Object name (else run.json's).")] = None):
+            object_name: Annotated[Optional[str], typer.Option("--object", help="Object name (default: run.json's).")] = None):
     """Import tactile PNGs, a CSV of wrenches and poses and an object image from another rig."""
     from dataset.interchange import import_run
 

@@ -1,8 +1,4 @@
-"""``train``: the contact-condition-guided diffusion model on a dataset split.
-
-Not yet: validation sample PNGs, several GPUs through accelerate, `generate` and
-`evaluate` (the model issue is open).
-"""
+"""``train``, ``generate`` and ``evaluate``: the contact-condition-guided diffusion model."""
 
 from __future__ import annotations
 
@@ -17,34 +13,65 @@ app = typer.Typer(add_completion=False)
 @app.command()
 def train(
     data: Annotated[Path, typer.Option(help="A split directory from `dataset split` (split.json + index files).")],
-    out: Annotated[Path, typer.Option(help="Run directory: checkpoint/ (safetensors) is written here.")],
-    preset: Annotated[str, typer.Option(help="Model size: tiny (CPU, 32 px) or paper (GPU, 256 px).")] = "tiny",
-    steps: Annotated[int, typer.Option(help="Optimisation steps in all.", min=1)] = 2000,
-    batch_size: Annotated[int, typer.Option(help="Images per step.", min=1)] = 16,
-    lr: Annotated[float, typer.Option(help="Adam learning rate.", min=0.0)] = 2e-4,
-    checkpoint_every: Annotated[int, typer.Option(help="Steps between checkpoints.", min=1)] = 500,
-    seed: Annotated[int, typer.Option(help="Seed of the weights, the data order and the noise.")] = 0,
+    out: Annotated[Path, typer.Option(
+        help="Run directory: checkpoint/ (safetensors) and samples/ (validation PNGs) are written here.")],
+    config: Annotated[Optional[Path], typer.Option(
+        help="A model TOML: preset, [model] and [train] tables (docs/model.md). Options given here win. Default: none (the preset).")] = None,
+    preset: Annotated[Optional[str], typer.Option(
+        help="Model size: tiny (CPU, 32 px) or paper (GPU, 256 px). Default: the config's, else tiny.")] = None,
+    image_size: Annotated[Optional[int], typer.Option(help="Image side in px (default: the preset's).", min=8)] = None,
+    conditioning: Annotated[Optional[str], typer.Option(
+        help="Wrench conditioning: plane, embedding or plane+embedding (default: the preset's).")] = None,
+    prediction: Annotated[Optional[str], typer.Option(
+        help="Network target: sample (y0), epsilon (the paper's) or v_prediction (default: the preset's, sample).")] = None,
+    steps: Annotated[Optional[int], typer.Option(help="Optimisation steps in all (default 2000).", min=1)] = None,
+    batch_size: Annotated[Optional[int], typer.Option(help="Images per step, over all GPUs (default 16).", min=1)] = None,
+    lr: Annotated[Optional[float], typer.Option(
+        help="Adam learning rate (default: the preset's, 1e-3 tiny, 2e-4 paper).", min=0.0)] = None,
+    checkpoint_every: Annotated[Optional[int], typer.Option(help="Steps between checkpoints (default 500).", min=1)] = None,
+    sample_every: Annotated[Optional[int], typer.Option(
+        help="Steps between validation sample PNGs; 0: never (default 500).", min=0)] = None,
+    seed: Annotated[Optional[int], typer.Option(help="Seed of the weights, the data order and the noise (default 0).")] = None,
+    mixed_precision: Annotated[Optional[str], typer.Option(
+        help="auto (bf16/fp16 on CUDA, none on CPU), no, fp16 or bf16 (default auto).")] = None,
     resume: Annotated[bool, typer.Option(help="Continue from OUT/checkpoint exactly where it stopped.")] = False,
-    device: Annotated[Optional[str], typer.Option(help="cpu or cuda (default: cuda when available).")] = None,
+    device: Annotated[Optional[str], typer.Option(
+        help="cpu or cuda (default: cuda when available; under `accelerate launch`, each process's GPU).")] = None,
 ):
-    """Train the denoiser; progress shows the loss and images/s; checkpoints are safetensors."""
-    import torch
+    """Train the denoiser; progress shows the loss and images/s; checkpoints are safetensors.
+
+    Several GPUs: `accelerate launch -m model.cli --data ... --out ...` runs this same command.
+    """
+    import dataclasses
 
     from dataset.split import SplitError
-    from model.config import preset as make_preset
+    from model.config import PRESET_TRAINING, preset as make_preset
+    from model.config_file import load_model_file
     from model.trainer import CheckpointError, TrainConfig, Trainer
+    from rig.errors import ConfigError
 
     try:
-        model_cfg = make_preset(preset)
-        cfg = TrainConfig(steps=steps, batch_size=batch_size, lr=lr, checkpoint_every=checkpoint_every, seed=seed)
-        trainer = Trainer(model_cfg, cfg, data, out, device=device or ("cuda" if torch.cuda.is_available() else "cpu"),
-                          log=typer.echo)
+        if config is not None:
+            model_cfg, train_fields = load_model_file(config, preset)
+        else:
+            model_cfg, train_fields = make_preset(preset or "tiny"), dict(PRESET_TRAINING.get(preset or "tiny", {}))
+        model_over = {k: v for k, v in (("image_size", image_size), ("conditioning", conditioning),
+                                         ("prediction", prediction)) if v is not None}
+        if model_over:
+            model_cfg = dataclasses.replace(model_cfg, **model_over)
+        given = {"steps": steps, "batch_size": batch_size, "lr": lr, "checkpoint_every": checkpoint_every,
+                 "sample_every": sample_every, "seed": seed, "mixed_precision": mixed_precision}
+        cfg = TrainConfig(**{**train_fields, **{k: v for k, v in given.items() if v is not None}})
+        trainer = Trainer(model_cfg, cfg, data, out, device=device, log=typer.echo)
         if resume:
             trainer.resume()
-            typer.echo(f"resumed at step {trainer.step}")
+            trainer.log(f"resumed at step {trainer.step}")
+        trainer.log(f"model: {model_cfg.image_size} px, widths {list(model_cfg.block_out_channels)}, "
+                   f"{model_cfg.conditioning}; {len(trainer.data)} training frames; device {trainer.device}"
+                   + (f" x {trainer.acc.num_processes} processes" if trainer.acc.num_processes > 1 else ""))
         trainer.train()
-        typer.echo(f"checkpoint: {trainer.save()}")
-    except (KeyError, ValueError, SplitError, CheckpointError, FileNotFoundError) as exc:
+        trainer.log(f"checkpoint: {trainer.save()}")
+    except (KeyError, ValueError, SplitError, CheckpointError, ConfigError, FileNotFoundError) as exc:
         typer.secho(f"error: {exc}", fg=typer.colors.RED, err=True)
         raise typer.Exit(1)
 
@@ -65,29 +92,41 @@ def _numbers(text: str, n: int, what: str) -> list[float]:
 @generate_app.command()
 def generate(
     checkpoint: Annotated[Path, typer.Option(help="A run directory written by `train`.")],
-    object_image: Annotated[Path, typer.Option("--object", help="The object's contact face (PNG/JPEG).")],
-    wrench: Annotated[str, typer.Option(help="Fx,Fy,Fz (N),Mx,My,Mz (N·mm).")],
-    out: Annotated[Path, typer.Option(help="The generated tactile frame (PNG).")],
+    out: Annotated[Path, typer.Option(help="The generated frame (PNG); with --split, a folder of PNGs.")],
+    object_image: Annotated[Optional[Path], typer.Option("--object", help="The object's contact face (PNG/JPEG); needed unless --split (default: none).")] = None,
+    wrench: Annotated[Optional[str], typer.Option(help="Fx,Fy,Fz (N),Mx,My,Mz (N·mm); needed unless --split (default: none).")] = None,
     pose: Annotated[str, typer.Option(help="x,y (mm),theta (deg) of the object on the sensor.")] = "0,0,0",
+    split: Annotated[Optional[Path], typer.Option(
+        help="Instead of --object/--wrench: generate every frame of a split's part (conditions from its runs). Default: none.")] = None,
+    part: Annotated[str, typer.Option(help="With --split: the part to generate (train, val or test).")] = "test",
+    limit: Annotated[Optional[int], typer.Option(help="With --split: at most this many frames, spread evenly (default: all).", min=1)] = None,
     steps: Annotated[int, typer.Option(help="Sampler steps.", min=1, max=1000)] = 50,
     sampler: Annotated[str, typer.Option(help="ddim, ddpm or dpm.")] = "ddim",
-    seed: Annotated[int, typer.Option(help="Noise seed: the same seed gives the same frame.")] = 0,
+    guidance: Annotated[float, typer.Option(help="Classifier-free guidance weight (1: none).", min=0.0)] = 1.0,
+    seed: Annotated[int, typer.Option(help="Noise seed: the same seed gives the same frames.")] = 0,
 ):
-    """Generate a tactile frame for an object image, a wrench and a pose."""
+    """Generate a tactile frame for an object image, a wrench and a pose, or every frame of a split."""
     import cv2
 
     from model.inference import TrainedModel
     from model.trainer import CheckpointError
 
-    w = _numbers(wrench, 6, "--wrench")
-    p = _numbers(pose, 3, "--pose")
-    img = cv2.imread(str(object_image), cv2.IMREAD_COLOR)
-    if img is None:
-        typer.secho(f"error: {object_image}: cannot read the object image", fg=typer.colors.RED, err=True)
-        raise typer.Exit(1)
     try:
-        frame = TrainedModel.load(checkpoint).generate(img, w, p, steps=steps, sampler=sampler, seed=seed)
-    except (CheckpointError, ValueError) as exc:
+        model = TrainedModel.load(checkpoint)
+        if split is not None:
+            written = model.generate_split(split, part, out, limit=limit, steps=steps, sampler=sampler, seed=seed,
+                                           guidance=guidance, log=typer.echo)
+            typer.echo(f"{out}: {written} frames (PNG, named RUN-FRAME.png) and index.csv")
+            return
+        if object_image is None or wrench is None:
+            raise typer.BadParameter("give --object and --wrench, or --split")
+        w = _numbers(wrench, 6, "--wrench")
+        p = _numbers(pose, 3, "--pose")
+        img = cv2.imread(str(object_image), cv2.IMREAD_COLOR)
+        if img is None:
+            raise ValueError(f"{object_image}: cannot read the object image")
+        frame = model.generate(img, w, p, steps=steps, sampler=sampler, seed=seed, guidance=guidance)
+    except (CheckpointError, ValueError, KeyError, FileNotFoundError) as exc:
         typer.secho(f"error: {exc}", fg=typer.colors.RED, err=True)
         raise typer.Exit(1)
     cv2.imwrite(str(out), frame)
@@ -101,13 +140,25 @@ evaluate_app = typer.Typer(add_completion=False)
 def evaluate(
     checkpoint: Annotated[Path, typer.Option(help="A run directory written by `train`.")],
     split: Annotated[Path, typer.Option(help="The split directory; its test part is evaluated.")],
-    out: Annotated[Path, typer.Option(help="Folder for report.md and metrics.json.")],
-    settings: Annotated[str, typer.Option(help="Sampler settings as sampler:steps, comma-separated.")] = "ddim:50",
-    limit: Annotated[Optional[int], typer.Option(help="Evaluate at most this many test frames.", min=1)] = None,
-    markers: Annotated[bool, typer.Option(help="Also the marker displacement error (marker sensors).")] = False,
+    out: Annotated[Path, typer.Option(help="Folder for report.md, metrics.json and the figures (PNG).")],
+    settings: Annotated[str, typer.Option(
+        help="Sampler settings as sampler:steps, comma-separated (ddim, ddpm, dpm); each is a row and a "
+             "point on the error-against-run-time plot.")] = "ddim:10,ddim:25,ddim:50",
+    part: Annotated[str, typer.Option(help="The split part to evaluate.")] = "test",
+    limit: Annotated[Optional[int], typer.Option(
+        help="At most this many frames, spread evenly over the part (default: all).", min=1)] = None,
+    markers: Annotated[Optional[bool], typer.Option(
+        "--markers/--no-markers", help="Marker displacement error (default: when the sensor has markers).")] = None,
+    baseline: Annotated[bool, typer.Option(
+        help="The physics-render row: the simulator's render of each frame at its measured pose.")] = True,
+    batch_size: Annotated[int, typer.Option(help="Frames generated at once (memory).", min=1)] = 64,
     seed: Annotated[int, typer.Option(help="Noise seed.")] = 0,
+    device: Annotated[Optional[str], typer.Option(help="cpu or cuda (default: cuda when available).")] = None,
 ):
-    """MSE, MAE, SSIM, PSNR (and marker error) per sampler setting, against seconds per image."""
+    """MSE, MAE, SSIM, PSNR (and marker error) per sampler setting against seconds per image, beside the
+    physics render and the paper's table."""
+    import torch
+
     from model.evaluate import evaluate as run, report
     from model.trainer import CheckpointError
 
@@ -116,14 +167,17 @@ def evaluate(
     except (IndexError, ValueError):
         raise typer.BadParameter(f"--settings: expected sampler:steps[,sampler:steps...], got {settings!r}") from None
     try:
-        rows = run(checkpoint, split, settings=pairs, limit=limit, markers=markers, seed=seed)
-    except (CheckpointError, ValueError, KeyError) as exc:
+        ev = run(checkpoint, split, part=part, settings=pairs, limit=limit, markers=markers, baseline=baseline,
+                 seed=seed, batch_size=batch_size, device=device or ("cuda" if torch.cuda.is_available() else "cpu"),
+                 log=typer.echo)
+    except (CheckpointError, ValueError, KeyError, FileNotFoundError) as exc:
         typer.secho(f"error: {exc}", fg=typer.colors.RED, err=True)
         raise typer.Exit(1)
-    for r in rows:
-        typer.echo(f"{r.setting}: MSE {r.mse:.2f}  MAE {r.mae:.2f}  SSIM {r.ssim:.3f}  PSNR {r.psnr:.2f}  "
-                   f"{r.seconds_per_image:.3f} s/image")
-    typer.echo(f"report: {report(rows, out, title=f'Evaluation of {checkpoint} on {split}')}")
+    for r in ev.rows + ([ev.baseline] if ev.baseline else []):
+        mk = "" if r.marker_px is None else f"  markers {r.marker_px:.2f} px"
+        typer.echo(f"{r.setting:>16}: MSE {r.mse:7.2f}  MAE {r.mae:5.2f}  SSIM {r.ssim:.3f}  PSNR {r.psnr:5.2f}"
+                   f"{mk}  {r.seconds_per_image:.4f} s/image")
+    typer.echo(f"report: {report(ev, out, title=f'Evaluation of {checkpoint} on {split} ({part})')}")
 
 
 def main() -> None:
@@ -136,3 +190,7 @@ def generate_main() -> None:
 
 def evaluate_main() -> None:
     evaluate_app()
+
+
+if __name__ == "__main__":  # `accelerate launch -m model.cli ...`
+    main()

@@ -1,6 +1,8 @@
 """Diffusion maths apart from the network: the training loss and the samplers.
 
 Loss (paper §III-B, Palette/SR3): E‖ε − f_θ(x, y_t, t)‖² with y_t = √ᾱ_t·y₀ + √(1−ᾱ_t)·ε.
+``ModelConfig.prediction`` may instead target v = √ᾱ_t·ε − √(1−ᾱ_t)·y₀ or y₀ (the same
+noise process; the samplers read the target from the scheduler config).
 Condition dropout replaces (object image, wrench) by zeros for classifier-free
 guidance: ε̂ = ε_u + w·(ε_c − ε_u).
 """
@@ -21,7 +23,7 @@ class Diffusion:
 
         self.cfg = cfg
         self.train_scheduler = DDPMScheduler(num_train_timesteps=cfg.train_timesteps, beta_schedule=cfg.beta_schedule,
-                                             prediction_type="epsilon")
+                                             prediction_type=cfg.prediction)
 
     def loss(self, net, tactile: torch.Tensor, condition: torch.Tensor, wrench: torch.Tensor,
              generator: torch.Generator | None = None) -> torch.Tensor:
@@ -35,7 +37,13 @@ class Diffusion:
             keep = (torch.rand((b,), device=dev, generator=generator) >= self.cfg.cond_dropout).float()
             condition = condition * keep[:, None, None, None]
             wrench = wrench * keep[:, None]
-        return F.mse_loss(net(noisy, t, condition, wrench), noise)
+        if self.cfg.prediction == "epsilon":
+            target = noise
+        elif self.cfg.prediction == "v_prediction":
+            target = self.train_scheduler.get_velocity(tactile, noise, t)
+        else:
+            target = tactile
+        return F.mse_loss(net(noisy, t, condition, wrench), target)
 
     def scheduler(self, name: str):
         from diffusers import DDIMScheduler, DDPMScheduler, DPMSolverMultistepScheduler

@@ -1,20 +1,27 @@
 """Evaluate a trained run on a split's test part: the paper's metrics, per sampler setting.
 
 For each (sampler, steps) setting: MSE, MAE, SSIM, PSNR (model/metrics.py), the
-marker displacement error for marker sensors, and the seconds per generated image.
-Written as a Markdown report with the paper's rows for comparison.
+marker displacement error for marker sensors, and the seconds per generated image;
+beside them the simulator's physics render of the same frames (model/baseline.py)
+as the lighting-model baseline row. ``report`` writes the table (Markdown + JSON),
+the error-against-run-time plot, example frames and, for marker sensors, marker
+motion images (model/figures.py).
 """
 
 from __future__ import annotations
 
 import json
 import time
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
+from typing import Callable
 
+import h5py
 import numpy as np
 import torch
 
+from acquisition import schema as S
+from acquisition.simulated import RIG_CONFIG_MARK
 from dataset.torch_dataset import TactileDataset, scale_images, tensor_to_image
 from model.inference import TrainedModel
 from model.markers import marker_error
@@ -28,6 +35,7 @@ PAPER_ROWS = [  # shared/REFERENCE.md §2, real data, 0–255 scale
     ("paper, RGB light + markers", 28.02, 3.24, 0.95, 34.28),
     ("paper, white light + markers", 67.09, 5.27, 0.81, 30.91),
 ]
+PHYSICS = "physics render"
 
 
 @dataclass
@@ -37,49 +45,163 @@ class Row:
     mae: float
     ssim: float
     psnr: float
-    marker_px: float | None
+    marker_px: float | None  # mean per marker over frames whose markers were found
     seconds_per_image: float
     images: int
+    marker_failures: int = 0  # frames where 18×18 markers could not be found/matched
+
+
+@dataclass
+class Evaluation:
+    rows: list[Row]  # this model, one per sampler setting
+    baseline: Row | None  # the physics render
+    baseline_note: str  # why there is no baseline row, when there is none
+    markers: bool
+    simulated: bool = False  # every frame came from the simulated rig
+    examples: dict[str, list[np.ndarray]] = field(default_factory=dict)  # column → BGR images of the example frames
+    references: list[np.ndarray] = field(default_factory=list)  # each example's no-contact frame
+
+
+def _score(setting: str, real: list[np.ndarray], made: list[np.ndarray], seconds: float, markers: bool) -> Row:
+    metrics = [image_metrics(r, m) for r, m in zip(real, made)]
+    marker, failures = None, 0
+    if markers:
+        errors = []
+        for r, m in zip(real, made):
+            try:
+                errors.append(marker_error(r, m).per_marker_px)
+            except ValueError:
+                failures += 1
+        marker = float(np.mean(errors)) if errors else None
+    mean = {k: float(np.mean([m[k] for m in metrics])) for k in ("mse", "mae", "ssim", "psnr")}
+    return Row(setting, mean["mse"], mean["mae"], mean["ssim"], mean["psnr"], marker, seconds, len(real), failures)
+
+
+def _bgr(rgb_uint8: torch.Tensor) -> np.ndarray:
+    return np.ascontiguousarray(rgb_uint8.numpy().transpose(1, 2, 0)[..., ::-1])
 
 
 def evaluate(run_dir: str | Path, split_dir: str | Path, *, part: str = "test", settings=(("ddim", 50),),
-             limit: int | None = None, seed: int = 0, markers: bool = False, device: str = "cpu") -> list[Row]:
+             limit: int | None = None, seed: int = 0, markers: bool | None = None, baseline: bool = True,
+             device: str = "cpu", batch_size: int = 64, n_examples: int = 6,
+             log: Callable[[str], None] = lambda line: None) -> Evaluation:
+    """``limit`` frames spread evenly over the part (all by default); ``markers`` None: on
+    when the split's sensor has markers."""
     model = TrainedModel.load(run_dir, device=device)
     data = TactileDataset(split_dir, part, size=model.cfg.image_size)
-    n = len(data) if limit is None else min(limit, len(data))
-    if n == 0:
+    if len(data) == 0:
         raise ValueError(f"{split_dir}: the {part} part is empty")
-    items = [data[i] for i in range(n)]
-    cond = scale_images(torch.stack([it["condition"] for it in items]).to(model.device))
-    wrench = torch.stack([it["wrench"] for it in items]).to(model.device)
-    real = [it["tactile"].numpy().transpose(1, 2, 0)[..., ::-1] for it in items]
-    rows = []
+    n = len(data) if limit is None else min(limit, len(data))
+    chosen = np.unique(np.linspace(0, len(data) - 1, n).round().astype(int))
+    items = [data[int(i)] for i in chosen]
+    if markers is None:
+        markers = any(str(r.get("sensor", "")).endswith("_markers") for r in data.manifest["runs"])
+    real = [_bgr(it["tactile"]) for it in items]
+    ex = np.unique(np.linspace(0, len(items) - 1, min(n_examples, len(items))).round().astype(int))
+    ev = Evaluation([], None, "", markers)
+    ev.examples["object at pose"] = [_bgr(items[i]["condition"]) for i in ex]
+    ev.examples["real"] = [real[i] for i in ex]
+    ev.references = _references(data, [items[i]["run"] for i in ex], model.cfg.image_size)
+    ev.simulated = all(_simulated(path) for path in data.runs)
+
+    if baseline:
+        from model.baseline import BaselineUnavailable, render_frames
+
+        try:
+            rows = np.array([[it["run"], it["frame"]] for it in items])
+            poses = np.stack([it["pose"].numpy() for it in items])
+            log(f"physics render of {len(items)} frames")
+            rendered, seconds = render_frames(data.runs, rows, poses, model.cfg.image_size)
+            ev.baseline = _score(PHYSICS, real, rendered, seconds, markers)
+            ev.examples[PHYSICS] = [rendered[i] for i in ex]
+        except BaselineUnavailable as exc:
+            ev.baseline_note = str(exc)
+    else:
+        ev.baseline_note = "not asked for (--no-baseline)"
+
+    cond_all = torch.stack([it["condition"] for it in items])
+    wrench_all = torch.stack([it["wrench"] for it in items])
+    if settings:  # warm-up: the first timed setting should not pay for first-call costs
+        model.diffusion.sample(model.net, scale_images(cond_all[:1].to(model.device)), wrench_all[:1].to(model.device),
+                               steps=2, sampler=settings[0][0])
     for sampler, steps in settings:
         g = torch.Generator(device=model.device).manual_seed(seed)
+        made: list[np.ndarray] = []
         t0 = time.perf_counter()
-        out = model.diffusion.sample(model.net, cond, wrench, steps=steps, sampler=sampler, generator=g)
-        seconds = (time.perf_counter() - t0) / n
-        generated = [tensor_to_image(x) for x in out]
-        metrics = [image_metrics(r, gimg) for r, gimg in zip(real, generated)]
-        marker = None
-        if markers:
-            marker = float(np.mean([marker_error(r, gimg).per_marker_px for r, gimg in zip(real, generated)]))
-        rows.append(Row(f"{sampler}, {steps} steps", *(float(np.mean([m[k] for m in metrics]))
-                                                      for k in ("mse", "mae", "ssim", "psnr")), marker, seconds, n))
-    return rows
+        for lo in range(0, len(items), batch_size):
+            cond = scale_images(cond_all[lo:lo + batch_size].to(model.device))
+            out = model.diffusion.sample(model.net, cond, wrench_all[lo:lo + batch_size].to(model.device),
+                                         steps=steps, sampler=sampler, generator=g)
+            made.extend(tensor_to_image(x) for x in out)
+            log(f"{sampler} {steps} steps: {len(made)}/{len(items)} frames")
+        seconds = (time.perf_counter() - t0) / len(items)
+        setting = f"{sampler}, {steps} steps"
+        ev.rows.append(_score(setting, real, made, seconds, markers))
+        ev.examples[setting] = [made[i] for i in ex]
+    return ev
 
 
-def report(rows: list[Row], out: str | Path, *, title: str) -> Path:
+def _simulated(run_path: str) -> bool:
+    with h5py.File(run_path, "r", swmr=True) as f:
+        return str(f.attrs.get(S.ATTR_RIG_CONFIG, "")).startswith(RIG_CONFIG_MARK)
+
+
+def _references(data: TactileDataset, runs: list[int], size: int) -> list[np.ndarray]:
+    import cv2
+
+    cache: dict[int, np.ndarray] = {}
+    for run in set(runs):
+        with h5py.File(data.runs[run], "r", swmr=True) as f:
+            ref = f[S.REFERENCE_FRAME][()]
+        cache[run] = ref if ref.shape[0] == size else cv2.resize(ref, (size, size), interpolation=cv2.INTER_AREA)
+    return [cache[r] for r in runs]
+
+
+def _fmt_row(name: str, r: Row) -> str:
+    if r.marker_px is None:
+        mk = "—" if not r.marker_failures else f"— ({r.marker_failures} frames without markers)"
+    else:
+        mk = f"{r.marker_px:.2f}" + (f" ({r.marker_failures} frames failed)" if r.marker_failures else "")
+    return (f"| {name} | {r.mse:.2f} | {r.mae:.2f} | {r.ssim:.3f} | {r.psnr:.2f} | {mk} | "
+            f"{r.seconds_per_image:.4f} |")
+
+
+def report(ev: Evaluation, out: str | Path, *, title: str) -> Path:
+    """report.md + metrics.json + error_vs_time.png + samples.png (+ marker_flow.png) in ``out``."""
+    from model.figures import error_vs_time_plot, marker_flow_figure, samples_figure
+
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    lines = [f"# {title}", "", "Metrics as shared/REFERENCE.md §3 defines them (0–255 scale, all channels).", "",
+    n = ev.rows[0].images if ev.rows else 0
+    lines = [f"# {title}", "",
+             f"{n} held-out frames. Metrics as shared/REFERENCE.md §3 defines them (0–255 scale, all channels, "
+             "whole image); marker error: mean distance per matched marker of the central 18×18, in px at the "
+             "evaluated size.", "",
              "| method | MSE | MAE | SSIM | PSNR | marker px/marker | s / image |", "|---|---|---|---|---|---|---|"]
-    for r in rows:
-        mk = "—" if r.marker_px is None else f"{r.marker_px:.2f}"
-        lines.append(f"| this model ({r.setting}, {r.images} images) | {r.mse:.2f} | {r.mae:.2f} | {r.ssim:.3f} | "
-                     f"{r.psnr:.2f} | {mk} | {r.seconds_per_image:.3f} |")
+    for r in ev.rows:
+        lines.append(_fmt_row(f"this model ({r.setting})", r))
+    if ev.baseline is not None:
+        lines.append(_fmt_row("physics render: the simulator's mechanics + lighting at the measured pose", ev.baseline))
     for name, mse_, mae_, ssim_, psnr_ in PAPER_ROWS:
-        lines.append(f"| {name} (paper's table, real data) | {mse_} | {mae_} | {ssim_} | {psnr_} | — | — |")
+        lines.append(f"| {name} (paper's table, real data, 256 px) | {mse_} | {mae_} | {ssim_} | {psnr_} | — | — |")
+    if ev.baseline is None:
+        lines += ["", f"No physics-render row: {ev.baseline_note}"]
+    elif ev.simulated:
+        lines += ["", "These frames come from the simulated rig, so the physics render is the model that made them: "
+                      "it differs from them only by sensor noise and the friction history of earlier frames. Here it "
+                      "is an oracle, not a baseline; on frames from a real sensor it is the lighting-model baseline."]
+    lines += ["", "## Error against run time", "", "![error against seconds per image](error_vs_time.png)", "",
+              "## Examples", "", "Columns: " + ", ".join(ev.examples) + ".", "", "![examples](samples.png)"]
+    error_vs_time_plot(ev, out / "error_vs_time.png")
+    samples_figure(ev.examples, out / "samples.png")
+    if ev.markers:
+        made = marker_flow_figure(ev, out / "marker_flow.png")
+        if made:
+            lines += ["", "## Marker motion", "",
+                      "Arrows from each central marker at rest (the run's no-contact frame) to where it is found, "
+                      "drawn ×4: real, physics render, this model.", "", "![marker motion](marker_flow.png)"]
     (out / "report.md").write_text("\n".join(lines) + "\n")
-    (out / "metrics.json").write_text(json.dumps([r.__dict__ for r in rows], indent=2) + "\n")
+    payload = {"model": [asdict(r) for r in ev.rows], "physics_render": asdict(ev.baseline) if ev.baseline else None,
+               "physics_render_note": ev.baseline_note}
+    (out / "metrics.json").write_text(json.dumps(payload, indent=2) + "\n")
     return out / "report.md"

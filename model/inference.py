@@ -64,3 +64,39 @@ class TrainedModel:
         out = self.diffusion.sample(self.net, cond.to(self.device), w.to(self.device), steps=steps, sampler=sampler,
                                     guidance=guidance, generator=g)[0]
         return tensor_to_image(out)
+
+    def generate_split(self, split_dir: str | Path, part: str, out_dir: str | Path, *, limit: int | None = None,
+                       steps: int = 50, sampler: str = "ddim", seed: int = 0, guidance: float = 1.0,
+                       batch_size: int = 64, log=lambda line: None) -> int:
+        """Every frame of a split's part (``limit``: that many, spread evenly), as RUN-FRAME.png
+        in ``out_dir`` with index.csv (run file, frame, wrench, pose, png). Returns the count."""
+        import csv
+
+        from dataset.torch_dataset import TactileDataset
+
+        data = TactileDataset(split_dir, part, size=self.cfg.image_size)
+        if len(data) == 0:
+            raise ValueError(f"{split_dir}: the {part} part is empty")
+        n = len(data) if limit is None else min(limit, len(data))
+        chosen = np.unique(np.linspace(0, len(data) - 1, n).round().astype(int))
+        out = Path(out_dir)
+        out.mkdir(parents=True, exist_ok=True)
+        g = torch.Generator(device=self.device).manual_seed(seed)
+        with open(out / "index.csv", "w", newline="") as fh:
+            writer = csv.writer(fh)
+            writer.writerow(["run", "frame", "Fx_N", "Fy_N", "Fz_N", "Mx_Nmm", "My_Nmm", "Mz_Nmm",
+                             "x_mm", "y_mm", "z_mm", "theta_deg", "png"])
+            for lo in range(0, len(chosen), batch_size):
+                items = [data[int(i)] for i in chosen[lo:lo + batch_size]]
+                cond = scale_images(torch.stack([it["condition"] for it in items]).to(self.device))
+                wrench = torch.stack([it["wrench"] for it in items]).to(self.device)
+                made = self.diffusion.sample(self.net, cond, wrench, steps=steps, sampler=sampler, guidance=guidance,
+                                             generator=g)
+                for it, img in zip(items, made):
+                    name = f"{it['run']:02d}-{it['frame']:06d}.png"
+                    cv2.imwrite(str(out / name), tensor_to_image(img))
+                    raw = it["wrench"].numpy() * data.std + data.mean
+                    writer.writerow([data.runs[it["run"]], it["frame"], *(f"{v:.6g}" for v in raw),
+                                     *(f"{v:.6g}" for v in it["pose"].numpy()), name])
+                log(f"{min(lo + batch_size, len(chosen))}/{len(chosen)} frames")
+        return len(chosen)

@@ -4,6 +4,12 @@ Exact resume: the data order is a function of (seed, step) alone, and a checkpoi
 holds the model, its EMA, the optimizer and the noise generator, so a resumed run
 takes the same steps with the same losses as an uninterrupted one. Checkpoints are
 safetensors (no pickle): tensors in .safetensors files, the rest in JSON.
+
+Several GPUs or nodes: ``accelerate launch -m model.cli ...`` (or ``accelerate launch
+$(which train) ...``) runs this same loop in each process; each takes its share of
+the step's batch (the global batch and its order are the single-process ones), the
+gradients are averaged by accelerate, and the main process logs, samples and saves.
+Mixed precision (bf16, or fp16 with loss scaling) on CUDA.
 """
 
 from __future__ import annotations
@@ -30,10 +36,14 @@ from model.network import ContactDenoiser
 class TrainConfig:
     steps: int = 2000  # optimisation steps in all
     batch_size: int = 16
-    lr: float = 2e-4  # Adam, as Palette/SR3
+    lr: float = 2e-4  # Adam, as Palette/SR3 (presets set their own: model/config.py PRESET_TRAINING)
     ema_decay: float = 0.999  # sampling uses the EMA weights
     checkpoint_every: int = 500
+    sample_every: int = 500  # validation samples saved as PNG this often (0: never)
+    samples: int = 4  # validation frames in each PNG
+    sample_steps: int = 25  # DDIM steps for the validation samples
     seed: int = 0  # data order and noise
+    mixed_precision: str = "auto"  # auto (bf16 on CUDA when supported, else fp16; none on CPU) | no | fp16 | bf16
 
 
 class CheckpointError(ValueError):
@@ -42,21 +52,30 @@ class CheckpointError(ValueError):
 
 class Trainer:
     def __init__(self, model_cfg: ModelConfig, train_cfg: TrainConfig, split_dir: str | Path, out_dir: str | Path,
-                 *, device: str = "cpu", log: Callable[[str], None] = print):
+                 *, device: str | None = None, log: Callable[[str], None] = print):
+        from accelerate import Accelerator
+
         self.model_cfg, self.cfg = model_cfg, train_cfg
         self.out = Path(out_dir)
-        self.device = torch.device(device)
-        self.log = log
-        torch.manual_seed(train_cfg.seed)  # initial weights
-        self.net = ContactDenoiser(model_cfg).to(self.device)
-        self.ema = copy.deepcopy(self.net).eval().requires_grad_(False)
-        self.opt = torch.optim.Adam(self.net.parameters(), lr=train_cfg.lr)
+        self.acc = Accelerator(cpu=device == "cpu", mixed_precision=_precision(train_cfg.mixed_precision, device))
+        self.device = self.acc.device
+        self.main = self.acc.is_main_process
+        self.log = log if self.main else (lambda line: None)
+        torch.manual_seed(train_cfg.seed)  # initial weights: the same in every process
+        net = ContactDenoiser(model_cfg).to(self.device)
+        self.ema = copy.deepcopy(net).eval().requires_grad_(False)
+        opt = torch.optim.Adam(net.parameters(), lr=train_cfg.lr)
+        self.net, self.opt = self.acc.prepare(net, opt)
         self.diffusion = Diffusion(model_cfg)
         self.data = TactileDataset(split_dir, "train", size=model_cfg.image_size)
         if len(self.data) < train_cfg.batch_size:
             raise ValueError(f"{split_dir}: {len(self.data)} training frames, fewer than one batch of {train_cfg.batch_size}")
+        if train_cfg.batch_size % self.acc.num_processes:
+            raise ValueError(f"batch size {train_cfg.batch_size} must divide among {self.acc.num_processes} processes")
+        self.split_dir = Path(split_dir)
         self.step = 0
-        self.noise = torch.Generator(device=self.device).manual_seed(train_cfg.seed + 1)
+        # each process its own noise stream; process 0's is the single-process one
+        self.noise = torch.Generator(device=self.device).manual_seed(train_cfg.seed + 1 + 1000 * self.acc.process_index)
         self.losses: list[float] = []
 
     # -- data order: a pure function of (seed, step) ---------------------------------
@@ -68,7 +87,8 @@ class Trainer:
         return order[i * b:(i + 1) * b]
 
     def _batch(self, step: int) -> dict:
-        items = [self.data[int(i)] for i in self.batch_indices(step)]
+        mine = self.batch_indices(step)[self.acc.process_index::self.acc.num_processes]
+        items = [self.data[int(i)] for i in mine]
         batch = {k: torch.stack([it[k] for it in items]) for k in ("condition", "wrench", "tactile")}
         return to_model_inputs(batch, self.device)
 
@@ -78,30 +98,69 @@ class Trainer:
         t0, done = time.perf_counter(), 0
         while self.step < until:
             batch = self._batch(self.step)
-            with torch.autocast(self.device.type, enabled=self.device.type == "cuda"):
+            with self.acc.autocast():
                 loss = self.diffusion.loss(self.net, batch["tactile"], batch["condition"], batch["wrench"],
                                            generator=self.noise)
             self.opt.zero_grad(set_to_none=True)
-            loss.backward()
+            self.acc.backward(loss)
             self.opt.step()
             with torch.no_grad():
-                for e, p in zip(self.ema.parameters(), self.net.parameters()):
-                    e.lerp_(p, 1.0 - self.cfg.ema_decay)
+                # warm-up: early on the EMA follows the weights closely, so a short run's EMA
+                # holds no trace of the random initial weights
+                decay = min(self.cfg.ema_decay, (1 + self.step) / (10 + self.step))
+                for e, p in zip(self.ema.parameters(), self.acc.unwrap_model(self.net).parameters()):
+                    e.lerp_(p.float(), 1.0 - decay)
             self.step += 1
             done += 1
-            self.losses.append(float(loss.detach()))
+            self.losses.append(float(self.acc.reduce(loss.detach().float(), "mean")))
             if self.step % 50 == 0 or self.step == until:
                 rate = done * self.cfg.batch_size / (time.perf_counter() - t0)
                 self.log(f"step {self.step}/{until}  loss {np.mean(self.losses[-50:]):.4f}  {rate:.1f} images/s")
+            if self.cfg.sample_every and self.step % self.cfg.sample_every == 0:
+                self.sample_validation()
             if self.step % self.cfg.checkpoint_every == 0:
                 self.save()
         return self.losses
 
+    # -- validation samples ------------------------------------------------------------
+    def sample_validation(self) -> Path | None:
+        """samples/step-NNNNNN.png from the EMA weights: object at pose, real, generated, for a
+        fixed set of held-out frames (the val part, else test). Touches no training state."""
+        if not self.main:
+            return None
+        from dataset.split import load_split
+        from dataset.torch_dataset import scale_images, tensor_to_image
+        from model.figures import samples_figure
+
+        _, parts = load_split(self.split_dir)
+        part = "val" if "val" in parts else "test"
+        data = TactileDataset(self.split_dir, part, size=self.model_cfg.image_size)
+        if len(data) == 0:
+            return None
+        chosen = np.unique(np.linspace(0, len(data) - 1, min(self.cfg.samples, len(data))).round().astype(int))
+        items = [data[int(i)] for i in chosen]
+        cond = torch.stack([it["condition"] for it in items])
+        g = torch.Generator(device=self.device).manual_seed(self.cfg.seed)
+        made = self.diffusion.sample(self.ema, scale_images(cond.to(self.device)),
+                                     torch.stack([it["wrench"] for it in items]).to(self.device),
+                                     steps=self.cfg.sample_steps, sampler="ddim", generator=g)
+        bgr = lambda t: np.ascontiguousarray(t.numpy().transpose(1, 2, 0)[..., ::-1])  # noqa: E731
+        path = self.out / "samples" / f"step-{self.step:06d}.png"
+        path.parent.mkdir(parents=True, exist_ok=True)
+        samples_figure({"object at pose": [bgr(c) for c in cond], "real": [bgr(it["tactile"]) for it in items],
+                        f"step {self.step}": [tensor_to_image(x) for x in made]}, path)
+        self.log(f"validation samples ({part}): {path}")
+        return path
+
     # -- checkpoints -------------------------------------------------------------------
     def save(self) -> Path:
         ck = self.out / "checkpoint"
+        self.acc.wait_for_everyone()
+        if not self.main:
+            return ck
         ck.mkdir(parents=True, exist_ok=True)
-        save_file({k: v.contiguous() for k, v in self.net.state_dict().items()}, str(ck / "model.safetensors"))
+        net = self.acc.unwrap_model(self.net)
+        save_file({k: v.contiguous() for k, v in net.state_dict().items()}, str(ck / "model.safetensors"))
         save_file({k: v.contiguous() for k, v in self.ema.state_dict().items()}, str(ck / "ema.safetensors"))
         opt = self.opt.state_dict()
         tensors = {f"{pid}.{key}": v for pid, st in opt["state"].items() for key, v in st.items()
@@ -126,12 +185,14 @@ class Trainer:
             diff = {k: (meta["model"].get(k), v) for k, v in mine.items() if meta["model"].get(k) != v}
             raise CheckpointError(f"{ck}: trained with a different model config (checkpoint vs now: {diff})")
         try:
-            self.net.load_state_dict(load_file(str(ck / "model.safetensors"), device=str(self.device)))
+            self.acc.unwrap_model(self.net).load_state_dict(load_file(str(ck / "model.safetensors"), device=str(self.device)))
             self.ema.load_state_dict(load_file(str(ck / "ema.safetensors"), device=str(self.device)))
         except RuntimeError as exc:
             raise CheckpointError(f"{ck}: weights do not fit this model: {str(exc).splitlines()[0]}") from exc
         tensors = load_file(str(ck / "optimizer.safetensors"))
-        self.noise.set_state(tensors.pop("noise_generator_state"))
+        noise_state = tensors.pop("noise_generator_state")
+        if self.acc.process_index == 0:  # the others restart their streams (one state is saved)
+            self.noise.set_state(noise_state)
         state: dict = {}
         for name, v in tensors.items():
             pid, key = name.split(".", 1)
@@ -139,3 +200,14 @@ class Trainer:
         self.opt.load_state_dict({"state": state, "param_groups": meta["param_groups"]})
         self.step = meta["step"]
         self.losses = list(meta["losses"])
+
+
+def _precision(choice: str, device: str | None) -> str:
+    """accelerate's mixed_precision for a TrainConfig choice: none on CPU."""
+    if choice not in ("auto", "no", "fp16", "bf16"):
+        raise ValueError(f"mixed_precision must be auto, no, fp16 or bf16, got {choice!r}")
+    if device == "cpu" or not torch.cuda.is_available():
+        return "no"
+    if choice == "auto":
+        return "bf16" if torch.cuda.is_bf16_supported() else "fp16"
+    return choice

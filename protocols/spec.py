@@ -77,8 +77,46 @@ def protocol_names() -> list[str]:
     return sorted(p.stem for p in LIBRARY.glob("*.toml"))
 
 
-def load_protocol(name_or_path: str | Path) -> Protocol:
-    """A library protocol by name, or a protocol file by path."""
+def apply_settings(text: str, settings: list[str], path: str) -> str:
+    """``section.key=value`` settings (``rig run-protocol --set``) written into a protocol's
+    text, which the run file stores: the file records what actually ran."""
+    import json
+    import re
+    import tomllib
+
+    lines = text.splitlines()
+    for setting in settings:
+        name, sep, value = setting.partition("=")
+        section, dot, key = name.strip().partition(".")
+        if not sep or not dot or not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", key) or not section:
+            raise ConfigError(path, name.strip() or "-", f"--set {setting!r}: expected section.key=value, "
+                                                         "such as motion.speed_mm_s=0.1")
+        value = value.strip()
+        try:
+            tomllib.loads(f"v = {value}")
+        except tomllib.TOMLDecodeError:
+            value = json.dumps(value)  # a bare word: a string
+        entry = f"{key} = {value}  # set on the command line"
+        in_section, done, header = False, False, None
+        for i, line in enumerate(lines):
+            head = re.fullmatch(r"\s*\[([^\]]+)\]\s*(#.*)?", line)
+            if head:
+                in_section = head.group(1).strip() == section
+                header = i if in_section else header
+            elif in_section and re.match(rf"\s*{key}\s*=", line):
+                lines[i], done = entry, True
+                break
+        if not done:
+            if header is None:
+                lines += ["", f"[{section}]", entry]
+            else:
+                lines.insert(header + 1, entry)
+    return "\n".join(lines) + "\n"
+
+
+def load_protocol(name_or_path: str | Path, settings: list[str] | None = None) -> Protocol:
+    """A library protocol by name, or a protocol file by path; ``settings`` (section.key=value)
+    change it for this run."""
     candidate = Path(name_or_path)
     if candidate.suffix != ".toml":
         candidate = LIBRARY / f"{name_or_path}.toml"
@@ -89,4 +127,6 @@ def load_protocol(name_or_path: str | Path) -> Protocol:
         text = candidate.read_text()
     except FileNotFoundError as exc:
         raise ConfigError(str(candidate), "-", "file not found") from exc
+    if settings:
+        text = apply_settings(text, settings, str(candidate))
     return parse_protocol(text, str(candidate))

@@ -2,6 +2,7 @@
 
 import math
 
+import cv2
 import numpy as np
 import pytest
 
@@ -58,3 +59,29 @@ def test_marker_error_measures_a_known_displacement():
     pressed = scene.frame(Pose(0.3, 0, -1.0, 0)).image
     moved = scene.contact.solver.solve(Pose(0.3, 0, -1.0, 0), shift_mm=(0.3, 0.0), fields={"uz", "uxy"})
     assert marker_error(still, scene.renderer.render(moved.fields)).per_marker_px > marker_error(still, pressed).per_marker_px
+
+
+def test_marker_flow_and_its_figure(tmp_path):
+    from model.evaluate import Evaluation, Row
+    from model.figures import marker_flow_figure
+    from model.markers import marker_flow
+    from rig.sim.contact import Pose
+    from rig.sim.tactile.optics import OpticsSpec
+    from rig.sim.tactile.scene import Scene
+
+    scene = Scene("sphere10mm", "rgb_markers", optics=OpticsSpec(kind="rgb_markers", noise_std=0.0))
+    still = scene.frame(Pose(0, 0, 0.5, 0)).image
+    start, end = marker_flow(still, np.roll(still, (1, 3), axis=(0, 1)))  # 3 px right, 1 px down
+    assert len(start) == 324
+    assert np.allclose((end - start).mean(axis=0), (3.0, 1.0), atol=0.05)
+    sheared = scene.renderer.render(scene.contact.solver.solve(Pose(0, 0, -1.0, 0), shift_mm=(0.4, 0.0),
+                                                                fields={"uz", "uxy"}).fields)
+    row = Row("ddim, 10 steps", 1.0, 1.0, 0.9, 40.0, 0.5, 0.01, 1)
+    ev = Evaluation([row], None, "", True, examples={"real": [sheared], "ddim, 10 steps": [still]},
+                    references=[still])
+    assert marker_flow_figure(ev, tmp_path / "flow.png")
+    flow = cv2.imread(str(tmp_path / "flow.png"))
+    assert flow.shape[1] == 2 * still.shape[1]  # real and model panels side by side
+    blank = Evaluation([row], None, "", True, examples={"real": [np.zeros_like(still)], "ddim, 10 steps": [still]},
+                       references=[still])
+    assert not marker_flow_figure(blank, tmp_path / "none.png")  # no markers: no figure, no crash

@@ -116,8 +116,10 @@ def test_resume_continues_with_the_same_losses(tmp_path):
     from model.trainer import CheckpointError, TrainConfig, Trainer
 
     split = make_split_dir(tmp_path)
-    cfg = TrainConfig(steps=8, batch_size=4, checkpoint_every=4, seed=3)
+    # validation samples every 3 steps in both runs: sampling must not disturb training's state
+    cfg = TrainConfig(steps=8, batch_size=4, checkpoint_every=4, seed=3, sample_every=3, samples=2, sample_steps=2)
     straight = Trainer(SMALL, cfg, split, tmp_path / "a", log=lambda m: None).train()
+    assert sorted(p.name for p in (tmp_path / "a" / "samples").iterdir()) == ["step-000003.png", "step-000006.png"]
     first = Trainer(SMALL, cfg, split, tmp_path / "b", log=lambda m: None)
     first.train(until=4)  # saves a checkpoint at step 4
     second = Trainer(SMALL, cfg, split, tmp_path / "b", log=lambda m: None)
@@ -160,13 +162,211 @@ def test_generate_from_a_trained_run(tmp_path):
         TrainedModel.load(tmp_path / "elsewhere")
 
 
-def test_evaluate_writes_the_metrics_table(tmp_path):
+def test_evaluate_writes_the_report_with_the_physics_render_row(tmp_path):
+    import json
+
     from model.evaluate import evaluate, report
 
     split, run = trained_run(tmp_path, 2)
-    rows = evaluate(run, split, settings=(("ddim", 3), ("ddpm", 4)), limit=3)
-    assert [r.setting for r in rows] == ["ddim, 3 steps", "ddpm, 4 steps"]
-    for r in rows:
+    ev = evaluate(run, split, settings=(("ddim", 3), ("ddpm", 4)), limit=3)
+    assert [r.setting for r in ev.rows] == ["ddim, 3 steps", "ddpm, 4 steps"] and not ev.markers
+    for r in ev.rows + [ev.baseline]:
         assert r.images == 3 and r.mse > 0 and 0 < r.psnr < 60 and -1 <= r.ssim <= 1 and r.seconds_per_image > 0
-    text = report(rows, tmp_path / "report", title="test").read_text()
-    assert "| this model (ddim, 3 steps, 3 images) |" in text and "| paper, RGB light (paper's table, real data) | 21.0 |" in text
+    # the frames are random noise: the physics render (a smooth gel) is far from them, and it is
+    # the simulator's render of each pose, not a copy of the frame
+    assert ev.baseline.mse > 1000
+    assert set(ev.examples) == {"object at pose", "real", "physics render", "ddim, 3 steps", "ddpm, 4 steps"}
+    path = report(ev, tmp_path / "report", title="test")
+    text = path.read_text()
+    assert "| this model (ddim, 3 steps) |" in text and "| paper, RGB light (paper's table, real data, 256 px) | 21.0 |" in text
+    assert "| physics render: the simulator's mechanics + lighting at the measured pose |" in text
+    for png in ("error_vs_time.png", "samples.png"):
+        assert (tmp_path / "report" / png).stat().st_size > 1000
+    assert not (tmp_path / "report" / "marker_flow.png").exists()
+    saved = json.loads((tmp_path / "report" / "metrics.json").read_text())
+    assert saved["physics_render"]["mse"] == pytest.approx(ev.baseline.mse)
+
+
+def test_physics_render_reproduces_a_simulated_frame(tmp_path):
+    """On a frame the simulator made, the baseline differs only by the frame's sensor noise."""
+    import numpy as np
+
+    from model.baseline import render_frames
+    from model.metrics import image_metrics
+    from rig.sim.contact import Pose
+    from rig.sim.rig_sim import rig_contact
+    from rig.sim.tactile.optics import OpticsSpec, Renderer
+
+    contact = rig_contact("sphere10mm")
+    renderer = Renderer(OpticsSpec(kind="rgb", height_px=64, width_px=64, noise_std=1.0), contact.solver.geometry)
+    pose = np.array([0.5, -0.3, -0.8, 2.0])
+    frame = renderer.render(contact.solve(Pose(*pose), renderer.needs()).fields)
+    still = renderer.render({})
+    run = _one_frame_run(tmp_path, frame, still, pose)
+    (img,), seconds = render_frames([str(run)], np.array([[0, 0]]), pose[None], 64)
+    assert image_metrics(frame, img)["mse"] < 3.0 < image_metrics(frame, still)["mse"]
+    assert seconds > 0
+
+
+def _one_frame_run(tmp_path, frame, reference, pose):
+    import numpy as np
+
+    from acquisition.run_file import RunHeader, RunWriter
+    from protocols.plan import PHASES
+    from rig.sim.tactile.indenters import get_indenter
+
+    size = frame.shape[0]
+    header = RunHeader("t", "", "", "sphere10mm", "", "rgb", 14 / size, 1.0, 1, (0, 0, 0, 0), PHASES)
+    w = RunWriter.create(tmp_path / "one.h5", header, frame.shape, get_indenter("sphere10mm").object_image(size, 14 / size),
+                         reference)
+    w.append(frame, wrench=np.zeros(6), pose_commanded=pose, pose_measured=pose, t_frame_s=0.0, t_capture_s=0.0,
+             wrench_skew_s=0.0, capture_index=0, step_index=0, phase_index=1, level=1)
+    w.set_status("complete")
+    w.close()
+    return tmp_path / "one.h5"
+
+
+def test_generate_over_a_split_writes_frames_and_an_index(tmp_path):
+    import csv
+
+    from model.inference import TrainedModel
+
+    split, run = trained_run(tmp_path, 2)
+    n = TrainedModel.load(run).generate_split(split, "test", tmp_path / "gen", steps=2, batch_size=2)
+    rows = list(csv.DictReader(open(tmp_path / "gen" / "index.csv")))
+    assert n == len(rows) == 5  # 8:2 of 24 frames
+    assert all((tmp_path / "gen" / r["png"]).exists() for r in rows)
+    assert float(rows[0]["z_mm"]) == pytest.approx(-1.0)
+
+
+def test_train_command_reads_a_model_toml_and_names_bad_keys(tmp_path):
+    import json
+
+    from typer.testing import CliRunner
+
+    from model.cli import app
+
+    split = make_split_dir(tmp_path)
+    good = tmp_path / "model.toml"
+    good.write_text('preset = "tiny"\n[model]\nimage_size = 16\nblock_out_channels = [16, 32]\nconditioning = "plane"\n'
+                    "train_timesteps = 100\n[train]\nsteps = 3\nbatch_size = 4\nsample_every = 0\n")
+    result = CliRunner().invoke(app, ["--data", str(split), "--out", str(tmp_path / "run"), "--config", str(good),
+                                      "--steps", "2"])
+    assert result.exit_code == 0, result.output
+    meta = json.loads((tmp_path / "run" / "checkpoint" / "state.json").read_text())
+    assert meta["step"] == 2  # the command line wins over the file
+    assert meta["model"]["image_size"] == 16 and meta["model"]["conditioning"] == "plane"
+    assert meta["train"]["batch_size"] == 4
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[model]\nimage_sise = 64\n")
+    result = CliRunner().invoke(app, ["--data", str(split), "--out", str(tmp_path / "x"), "--config", str(bad)])
+    assert result.exit_code == 1 and "bad.toml" in result.output and "model.image_sise" in result.output
+    bad.write_text("[train]\nsteps = \"many\"\n")
+    result = CliRunner().invoke(app, ["--data", str(split), "--out", str(tmp_path / "x"), "--config", str(bad)])
+    assert result.exit_code == 1 and "train.steps" in result.output and "int" in result.output
+
+
+@pytest.mark.parametrize("prediction", ["epsilon", "v_prediction", "sample"])
+def test_loss_targets_and_samplers_agree_for_each_prediction(prediction):
+    """An oracle network that knows the clean image answers in the configured target: its
+    loss is zero, and every sampler returns the clean image from pure noise."""
+    cfg = ModelConfig(**{**SMALL.__dict__, "prediction": prediction})
+    diff = Diffusion(cfg)
+    clean = torch.rand(2, 3, 16, 16) * 1.6 - 0.8
+    ab = diff.train_scheduler.alphas_cumprod
+
+    def oracle(noisy, t, condition, wrench):
+        a = ab[t].view(-1, 1, 1, 1)
+        eps = (noisy - a.sqrt() * clean) / (1 - a).sqrt()
+        return {"epsilon": eps, "v_prediction": a.sqrt() * eps - (1 - a).sqrt() * clean, "sample": clean}[prediction]
+
+    cond, wrench = torch.zeros_like(clean), torch.zeros(2, 6)
+    g = torch.Generator().manual_seed(0)
+    assert diff.loss(oracle, clean, cond, wrench, generator=g).item() < 1e-6
+    for sampler in ("ddim", "dpm", "ddpm"):
+        out = diff.sample(oracle, cond, wrench, steps=10, sampler=sampler, generator=torch.Generator().manual_seed(1))
+        assert torch.allclose(out, clean, atol=2e-3), sampler
+    wrong = "sample" if prediction != "sample" else "epsilon"
+    cfg_wrong = ModelConfig(**{**SMALL.__dict__, "prediction": wrong})
+    assert Diffusion(cfg_wrong).loss(oracle, clean, cond, wrench, generator=torch.Generator().manual_seed(0)).item() > 1e-2
+
+
+def test_the_example_model_files_in_docs_load():
+    from pathlib import Path
+
+    from model.config_file import load_model_file
+
+    files = sorted((Path(__file__).parent.parent / "docs" / "examples").glob("*.toml"))
+    assert files
+    for path in files:
+        cfg, train = load_model_file(path)
+        assert cfg.image_size in (64, 128, 256) and train["steps"] > 0
+
+
+def test_two_processes_train_through_accelerate(tmp_path):
+    """`torchrun`/`accelerate launch` runs the same `train`: two CPU processes (gloo) share
+    each step's batch; one process logs and saves."""
+    import json
+    import os
+    import signal
+    import socket
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    split = make_split_dir(tmp_path, n=40)
+    cfg = tmp_path / "m.toml"
+    cfg.write_text("[model]\nimage_size = 16\nblock_out_channels = [16, 32]\ntrain_timesteps = 100\n")
+    torchrun = Path(sys.executable).with_name("torchrun")
+    env = {**os.environ, "OMP_NUM_THREADS": "1"}
+    with socket.socket() as s:  # a free port for the rendezvous
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    cmd = [str(torchrun), "--nproc_per_node", "2", "--master_addr", "127.0.0.1", "--master_port", str(port),
+           "-m", "model.cli", "--data", str(split), "--out", str(tmp_path / "run"), "--config", str(cfg),
+           "--steps", "4", "--batch-size", "4", "--sample-every", "2", "--device", "cpu"]
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
+                            cwd=Path(__file__).parent.parent, start_new_session=True)
+    try:
+        stdout, stderr = proc.communicate(timeout=100)
+    except subprocess.TimeoutExpired:
+        os.killpg(proc.pid, signal.SIGKILL)  # the workers too, not only torchrun
+        proc.communicate()
+        raise
+    assert proc.returncode == 0, stderr[-2000:]
+    assert "x 2 processes" in stdout and stdout.count("checkpoint:") == 1
+    meta = json.loads((tmp_path / "run" / "checkpoint" / "state.json").read_text())
+    assert meta["step"] == 4 and len(meta["losses"]) == 4
+    assert sorted(p.name for p in (tmp_path / "run" / "samples").iterdir()) == ["step-000002.png", "step-000004.png"]
+
+
+def test_generate_and_evaluate_commands(tmp_path):
+    import cv2
+    import numpy as np
+    from typer.testing import CliRunner
+
+    from model.cli import evaluate_app, generate_app
+
+    split, run = trained_run(tmp_path, 2)
+    obj = tmp_path / "obj.png"
+    cv2.imwrite(str(obj), np.full((40, 40, 3), 200, np.uint8))
+    r = CliRunner().invoke(generate_app, ["--checkpoint", str(run), "--object", str(obj), "--wrench", "0,0,2,0,0,0",
+                                          "--out", str(tmp_path / "f.png"), "--steps", "2"])
+    assert r.exit_code == 0, r.output
+    assert cv2.imread(str(tmp_path / "f.png")).shape == (16, 16, 3)
+    r = CliRunner().invoke(generate_app, ["--checkpoint", str(run), "--object", str(obj), "--wrench", "0,0,2",
+                                          "--out", str(tmp_path / "g.png")])
+    assert r.exit_code != 0 and "6 comma-separated numbers" in r.output
+    r = CliRunner().invoke(generate_app, ["--checkpoint", str(run), "--out", str(tmp_path / "g.png")])
+    assert r.exit_code != 0 and "--split" in r.output
+    r = CliRunner().invoke(generate_app, ["--checkpoint", str(run), "--split", str(split), "--out", str(tmp_path / "gen"),
+                                          "--steps", "2", "--limit", "3"])
+    assert r.exit_code == 0, r.output
+    assert len(list((tmp_path / "gen").glob("*.png"))) == 3
+    r = CliRunner().invoke(evaluate_app, ["--checkpoint", str(run), "--split", str(split), "--out", str(tmp_path / "rep"),
+                                          "--settings", "ddim:2", "--limit", "2", "--no-baseline"])
+    assert r.exit_code == 0, r.output
+    assert "report:" in r.output and "No physics-render row: not asked for" in (tmp_path / "rep" / "report.md").read_text()
+    r = CliRunner().invoke(evaluate_app, ["--checkpoint", str(run), "--split", str(split), "--out", str(tmp_path / "rep"),
+                                          "--settings", "ddim"])
+    assert r.exit_code != 0 and "sampler:steps" in r.output

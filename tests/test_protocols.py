@@ -70,3 +70,25 @@ def test_unknown_protocol_lists_the_library(tmp_path):
         load_protocol("nonesuch")
     with pytest.raises(ConfigError, match="not valid TOML"):
         parse_protocol("[protocol\n", "bad.toml")
+
+
+def test_set_changes_keys_and_the_stored_text_records_them():
+    p = load_protocol("sphere10mm", ["motion.speed_mm_s=0.1", "protocol.sensor=rgb_markers", "capture.rate_hz=2"])
+    assert (p.speed_mm_s, p.sensor, p.capture_hz) == (0.1, "rgb_markers", 2.0)
+    again = parse_protocol(p.text, p.path)
+    assert (again.speed_mm_s, again.sensor, again.capture_hz) == (0.1, "rgb_markers", 2.0)
+    # at 0.1 mm/s the paper's sequence is ~700 frames per object (shared/REFERENCE.md §1)
+    assert 650 <= Plan.of(load_protocol("sphere10mm", ["motion.speed_mm_s=0.1"])).frame_count <= 800
+    base = load_protocol("sphere10mm")
+    assert Plan.of(base).frame_count > 5000
+
+
+@pytest.mark.parametrize("setting,words", [
+    ("motion.sped=1", "motion.sped"),                 # unknown key, named
+    ("speed=1", "section.key=value"),                 # no section
+    ("motion.speed_mm_s=fast", "motion.speed_mm_s"),  # a string where a number belongs
+    ("motion.speed_mm_s=50", "motion.speed_mm_s"),    # out of range
+])
+def test_bad_set_values_name_the_key(setting, words):
+    with pytest.raises(ConfigError, match=words.replace(".", r"\.")):
+        load_protocol("sphere10mm", [setting])

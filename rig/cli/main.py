@@ -85,8 +85,8 @@ def status(config: ConfigOpt = None, sim: SimOpt = False):
 @friendly_errors
 def jog(
     axis: Annotated[AxisName, typer.Option("--axis", "-a", help="Axis to move: x, y, z (mm) or theta (deg).")],
-    step: Annotated[Optional[float], typer.Option(help="Move by this much (mm, or deg for theta) and exit.")] = None,
-    to: Annotated[Optional[float], typer.Option(help="Move to this absolute position (mm or deg) and exit.")] = None,
+    step: Annotated[Optional[float], typer.Option(help="Move by this much (mm, or deg for theta) and exit (default: interactive jogging).")] = None,
+    to: Annotated[Optional[float], typer.Option(help="Move to this absolute position (mm or deg) and exit (default: interactive jogging).")] = None,
     speed: Annotated[Optional[float], typer.Option(
         help="Speed in mm/s (deg/s for theta); default: the axis's jog_speed from the config.", min=0.0)] = None,
     key_step: Annotated[float, typer.Option(
@@ -207,13 +207,20 @@ def protocols_list():
     list_protocols()
 
 
+SetOpt = Annotated[Optional[list[str]], typer.Option(
+    "--set", help="Change one protocol key for this run, as section.key=value (repeatable), e.g. "
+                  "--set motion.speed_mm_s=0.1 (the paper's ~700 frames per object) or --set protocol.sensor=rgb_markers. "
+                  "The run file stores the changed protocol. Default: the protocol as written.")]
+
+
 @protocols_app.command("show")
 @friendly_errors
-def protocols_show(name: Annotated[str, typer.Argument(help="A library protocol name, or a path to a .toml file.")]):
+def protocols_show(name: Annotated[str, typer.Argument(help="A library protocol name, or a path to a .toml file.")],
+                   settings: SetOpt = None):
     """Print a protocol's steps, its true duration, frame count and disk estimate."""
     from rig.cli.protocol_cmds import show_protocol
 
-    show_protocol(name)
+    show_protocol(name, settings=settings or [])
 
 
 def _origin(value: str) -> tuple[float, float, float, float]:
@@ -232,10 +239,11 @@ def run_protocol_cmd(
     name: Annotated[str, typer.Argument(help="A library protocol (rig protocols list), or a path to a .toml file.")],
     out: Annotated[Optional[Path], typer.Option(help="The HDF5 run file to write; must not exist "
                                                     "(default: runs/NAME-YYYYmmdd-HHMMSS.h5).")] = None,
-    resume: Annotated[Optional[Path], typer.Option(help="Continue this interrupted run file where it stopped.")] = None,
+    resume: Annotated[Optional[Path], typer.Option(help="Continue this interrupted run file where it stopped (default: a new run).")] = None,
     dry_run: Annotated[bool, typer.Option("--dry-run", help="Check every move against the config's limits and print "
                                                             "duration and frame count; move nothing.")] = False,
     origin: Annotated[str, typer.Option(help="The contact point in axis coordinates: x,y,z (mm),theta (deg).")] = "0,0,0,0",
+    settings: SetOpt = None,
     config: ConfigOpt = None,
     sim: SimOpt = False,
 ):
@@ -245,7 +253,8 @@ def run_protocol_cmd(
     """
     from rig.cli.protocol_cmds import run_protocol
 
-    run_protocol(name, out=out, resume=resume, dry_run=dry_run, config=config, sim=sim, origin=_origin(origin))
+    run_protocol(name, out=out, resume=resume, dry_run=dry_run, config=config, sim=sim, origin=_origin(origin),
+                 settings=settings or [])
 
 
 if __name__ == "__main__":

@@ -33,12 +33,12 @@ def list_protocols() -> None:
     console.print(table)
 
 
-def show_protocol(name: str, frame_px: int = 256) -> None:
+def show_protocol(name: str, frame_px: int = 256, settings: list[str] | None = None) -> None:
     from acquisition.executor import disk_bytes
     from protocols.plan import Plan
     from protocols.spec import load_protocol
 
-    p = load_protocol(name)
+    p = load_protocol(name, settings)
     plan = Plan.of(p)
     table = Table(title=f"{p.name}: {p.description}")
     for col in ("#", "phase", "level", "to x, y, z mm / θ deg", "speed", "duration", "captured"):
@@ -63,12 +63,12 @@ def _terminate_as_interrupt(*_):
 
 
 def run_protocol(name: str, *, out: Path | None, resume: Path | None, dry_run: bool, config: Path | None,
-                 sim: bool, origin: tuple[float, float, float, float]) -> None:
+                 sim: bool, origin: tuple[float, float, float, float], settings: list[str] | None = None) -> None:
     from acquisition.executor import disk_bytes, preflight
     from protocols.plan import AXES, Plan
     from protocols.spec import load_protocol
 
-    protocol = load_protocol(name)
+    protocol = load_protocol(name, settings)
     plan = Plan.of(protocol)
     origin_map = dict(zip(AXES, origin))
     if resume is None and out is None:  # a new file every run: a second run never collides

@@ -26,6 +26,15 @@ ZABER_DEVICES = {"x": 1, "y": 2, "z": 3}
 THETA_DEVICE_ID = 1
 
 
+def rig_contact(indenter: str):
+    """The simulated rig's gel: 96 cells over the 14 mm pad (0.146 mm), well under 1 %
+    force error for these contacts (docs/simulator.md) at half the cost of 128."""
+    from rig.sim.tactile.contact import SensorGeometry
+    from rig.sim.tactile.world_contact import ElastomerContact
+
+    return ElastomerContact(indenter, geometry=SensorGeometry(cells=96))
+
+
 class SimulatedRig:
     def __init__(self, clock: Clock | None = None, *, transport: str = "pty", gauge: str = "ft300",
                  spec: WorldSpec | None = None, seed: int = 0, indenter: str = "sphere10mm",
@@ -34,12 +43,7 @@ class SimulatedRig:
             raise ValueError(f"simulated gauge must be 'ft300' or 'm8128', got {gauge!r}")
         self.clock = clock or SystemClock()
         if contact is None:
-            from rig.sim.tactile.contact import SensorGeometry
-            from rig.sim.tactile.world_contact import ElastomerContact
-
-            # 96 cells over the 14 mm pad (0.146 mm): well under 1 % force error for
-            # these contacts (docs/simulator.md), and the rig's physics at half the cost.
-            contact = ElastomerContact(indenter, geometry=SensorGeometry(cells=96))
+            contact = rig_contact(indenter)
         self.world = SimWorld(self.clock, spec, contact=contact, seed=seed)
         self.sensor_kind = sensor_kind
         self.triggered_camera = False  # acquisition sets it: frames only on capture

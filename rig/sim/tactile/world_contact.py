@@ -44,6 +44,11 @@ class ElastomerContact:
     def indenter(self) -> Indenter:
         return self.solver.indenter
 
+    def reset(self) -> None:
+        """Forget the friction history (the stick anchor) and the cached solve."""
+        with self._lock:
+            self._anchor, self._cache_key, self._cache = None, None, None
+
     def _key(self, pose: Pose) -> tuple:
         q, qd = self.quantum_mm, self.quantum_deg
         return (round(pose.x_mm / q), round(pose.y_mm / q), round(pose.z_mm / q), round(pose.theta_deg / qd),

@@ -1,0 +1,114 @@
+"""The evaluation report's figures: error against run time, example frames, marker motion."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from model.markers import marker_flow
+
+TILE_PX = 160  # each example frame is drawn at least this large
+FLOW_GAIN = 4.0  # marker arrows are drawn this many times their length
+
+
+def error_vs_time_plot(ev, path: Path) -> None:
+    """MSE, SSIM (and marker error) against seconds per image: one line per sampler
+    through its step counts, the physics render as a star."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.ticker import NullFormatter
+
+    panels = [("mse", "MSE (lower is better)"), ("ssim", "SSIM (higher is better)")]
+    if ev.markers:
+        panels.append(("marker_px", "marker error, px per marker"))
+    fig, axes = plt.subplots(1, len(panels), figsize=(4.2 * len(panels), 3.4), squeeze=False)
+    samplers: dict[str, list] = {}
+    for r in ev.rows:
+        samplers.setdefault(r.setting.split(",")[0], []).append(r)
+    for ax, (key, label) in zip(axes[0], panels):
+        for name, rows in samplers.items():
+            rows = sorted(rows, key=lambda r: r.seconds_per_image)
+            pts = [(r.seconds_per_image, getattr(r, key)) for r in rows if getattr(r, key) is not None]
+            if pts:
+                ax.plot(*zip(*pts), "o-", label=f"model, {name}")
+                for r, (x, y) in zip(rows, pts):
+                    ax.annotate(r.setting.split(", ")[1].split()[0], (x, y), textcoords="offset points",
+                                xytext=(4, 4), fontsize=7)
+        b = ev.baseline
+        if b is not None and getattr(b, key) is not None:
+            ax.plot([b.seconds_per_image], [getattr(b, key)], "*", markersize=12, color="black", label="physics render")
+        ax.set_xscale("log")
+        ax.xaxis.set_minor_formatter(NullFormatter())
+        ax.set_xlabel("seconds per image (this machine)")
+        ax.set_ylabel(label)
+        ax.grid(alpha=0.3)
+    axes[0][0].legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def _tile(img: np.ndarray) -> np.ndarray:
+    scale = max(1, -(-TILE_PX // img.shape[0]))
+    return cv2.resize(img, (img.shape[1] * scale, img.shape[0] * scale), interpolation=cv2.INTER_NEAREST)
+
+
+def _header(text: str, width: int) -> np.ndarray:
+    strip = np.full((22, width, 3), 255, np.uint8)
+    cv2.putText(strip, text[: max(4, width // 8)], (4, 15), cv2.FONT_HERSHEY_SIMPLEX, 0.4, (0, 0, 0), 1, cv2.LINE_AA)
+    return strip
+
+
+def samples_figure(columns: dict[str, list[np.ndarray]], path: Path) -> None:
+    """A grid: one row per example frame, one column per source, each headed."""
+    cols = []
+    for name, images in columns.items():
+        tiles = [_tile(im) for im in images]
+        gap = np.full((4, tiles[0].shape[1], 3), 255, np.uint8)
+        body = np.concatenate([x for t in tiles for x in (t, gap)][:-1], axis=0)
+        cols.append(np.concatenate([_header(name, body.shape[1]), body], axis=0))
+    sep = np.full((cols[0].shape[0], 4, 3), 255, np.uint8)
+    cv2.imwrite(str(path), np.concatenate([x for c in cols for x in (c, sep)][:-1], axis=1))
+
+
+def _flow_panel(reference: np.ndarray, image: np.ndarray, colour) -> np.ndarray | None:
+    try:
+        start, end = marker_flow(reference, image)
+    except ValueError:
+        return None
+    # a match half a marker pitch away or farther is the assignment filling in for a marker
+    # not found (washed out under the contact), not motion: drawn, it would hide the flow
+    nearest = np.sort(np.linalg.norm(start[:, None] - start[None], axis=2), axis=1)[:, 1]
+    keep = np.linalg.norm(end - start, axis=1) < 0.5 * np.median(nearest)
+    canvas = _tile(image)
+    k = canvas.shape[0] / image.shape[0]
+    for (c0, r0), (c1, r1) in zip(start[keep], end[keep]):
+        a = (int(round(c0 * k)), int(round(r0 * k)))
+        b = (int(round((c0 + FLOW_GAIN * (c1 - c0)) * k)), int(round((r0 + FLOW_GAIN * (r1 - r0)) * k)))
+        cv2.arrowedLine(canvas, a, b, colour, 1, cv2.LINE_AA, tipLength=0.3)
+    return canvas
+
+
+def marker_flow_figure(ev, path: Path) -> bool:
+    """Marker motion of each example: real (green), physics render (blue), model (red) for
+    the last sampler setting; matches half a marker pitch away or farther are left out. False when no
+    example's markers could be found."""
+    sources = [("real", (0, 160, 0))]
+    if "physics render" in ev.examples:
+        sources.append(("physics render", (200, 60, 0)))
+    if ev.rows:
+        sources.append((ev.rows[-1].setting, (0, 0, 220)))
+    rows = []
+    for i, ref in enumerate(ev.references):
+        panels = [_flow_panel(ref, ev.examples[name][i], colour) for name, colour in sources]
+        if all(p is not None for p in panels):
+            rows.append(np.concatenate(panels, axis=1))
+    if not rows:
+        return False
+    header = np.concatenate([_header(name, rows[0].shape[1] // len(sources)) for name, _ in sources], axis=1)
+    cv2.imwrite(str(path), np.concatenate([header, *rows], axis=0))
+    return True
