@@ -49,7 +49,7 @@ stage "split 8:2 by frame"
 stage "train the tiny preset on CPU for $steps steps (validation samples in $out/model/samples)"
 "$bin/train" --data "$out/split" --out "$out/model" --preset tiny --steps "$steps" --sample-every 500
 
-stage "evaluate on $eval_frames held-out frames: $settings, and the physics render"
+stage "evaluate on up to $eval_frames held-out frames: $settings, and the physics render"
 "$bin/evaluate" --checkpoint "$out/model" --split "$out/split" --out "$out/report" --settings "$settings" \
     --limit "$eval_frames"
 

@@ -5,6 +5,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
 from typer.testing import CliRunner
 
 from rig.cli.main import app
@@ -82,7 +83,7 @@ def test_sim_serve_then_status_from_another_process(tmp_path):
     cfg = tmp_path / "sim.toml"
     rig = str(Path(sys.executable).parent / "rig")
     server = subprocess.Popen([rig, "sim", "serve", "--out", str(cfg), "--transport", "tcp"],
-                              stdout=subprocess.PIPE, text=True)
+                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         lines = []
         for line in server.stdout:
@@ -98,7 +99,18 @@ def test_sim_serve_then_status_from_another_process(tmp_path):
         assert "+0.2500" in result.stdout  # the state persisted in the serving process
     finally:
         server.send_signal(signal.SIGINT)
-        server.wait(timeout=10)
+        try:
+            out, _ = server.communicate(timeout=30)
+        except subprocess.TimeoutExpired:
+            server.send_signal(signal.SIGUSR1)  # its threads' stacks, for the failure message
+            try:
+                _, err = server.communicate(timeout=5)
+            except subprocess.TimeoutExpired:
+                err = ""
+            server.kill()
+            server.communicate()
+            pytest.fail(f"rig sim serve did not stop within 30 s of Ctrl-C; its threads:\n{err[-4000:]}")
+    assert "stopped" in out
 
 
 def test_train_reports_bad_input_in_one_line(tmp_path):

@@ -180,7 +180,11 @@ def sim_serve(
     gauge: Annotated[GaugeKind, typer.Option(help="Which force gauge to simulate.")] = GaugeKind.ft300,
 ):
     """Start the simulated rig, print its port URLs, write a config; runs until Ctrl-C."""
+    import faulthandler
+    import signal
     import threading
+
+    faulthandler.register(signal.SIGUSR1)  # `kill -USR1 PID` prints every thread's stack (a stuck simulator)
 
     from rig.sim.rig_sim import SimulatedRig
 
