@@ -37,6 +37,17 @@ def tensor_to_image(image: torch.Tensor) -> np.ndarray:
     return np.ascontiguousarray(rgb[..., ::-1])
 
 
+def uint8_tensor_to_image(image: torch.Tensor) -> np.ndarray:
+    """(3, H, W) RGB uint8 (a Dataset item's image) → (H, W, 3) BGR uint8."""
+    return np.ascontiguousarray(image.numpy().transpose(1, 2, 0)[..., ::-1])
+
+
+def spread(length: int, n: int | None) -> np.ndarray:
+    """Indices of ``n`` items spread evenly over ``length`` (all of them when ``n`` is None)."""
+    n = length if n is None else min(n, length)
+    return np.unique(np.linspace(0, length - 1, n).round().astype(int))
+
+
 def to_model_inputs(batch: dict, device=None) -> dict:
     """uint8 images → float in [−1, 1] on ``device`` (the GPU, in training): 4× less data
     crosses from the loader's workers than if they sent floats."""

@@ -18,11 +18,10 @@ from typing import Callable
 
 import h5py
 import numpy as np
-import torch
 
 from acquisition import schema as S
 from acquisition.simulated import RIG_CONFIG_MARK
-from dataset.torch_dataset import TactileDataset, scale_images, tensor_to_image
+from dataset.torch_dataset import TactileDataset, spread, uint8_tensor_to_image
 from model.inference import TrainedModel
 from model.markers import marker_error
 from model.metrics import image_metrics
@@ -77,10 +76,6 @@ def _score(setting: str, real: list[np.ndarray], made: list[np.ndarray], seconds
     return Row(setting, mean["mse"], mean["mae"], mean["ssim"], mean["psnr"], marker, seconds, len(real), failures)
 
 
-def _bgr(rgb_uint8: torch.Tensor) -> np.ndarray:
-    return np.ascontiguousarray(rgb_uint8.numpy().transpose(1, 2, 0)[..., ::-1])
-
-
 def evaluate(run_dir: str | Path, split_dir: str | Path, *, part: str = "test", settings=(("ddim", 50),),
              limit: int | None = None, seed: int = 0, markers: bool | None = None, baseline: bool = True,
              device: str = "cpu", batch_size: int = 64, n_examples: int = 6,
@@ -91,15 +86,13 @@ def evaluate(run_dir: str | Path, split_dir: str | Path, *, part: str = "test", 
     data = TactileDataset(split_dir, part, size=model.cfg.image_size)
     if len(data) == 0:
         raise ValueError(f"{split_dir}: the {part} part is empty")
-    n = len(data) if limit is None else min(limit, len(data))
-    chosen = np.unique(np.linspace(0, len(data) - 1, n).round().astype(int))
-    items = [data[int(i)] for i in chosen]
+    items = [data[int(i)] for i in spread(len(data), limit)]
     if markers is None:
         markers = any(str(r.get("sensor", "")).endswith("_markers") for r in data.manifest["runs"])
-    real = [_bgr(it["tactile"]) for it in items]
-    ex = np.unique(np.linspace(0, len(items) - 1, min(n_examples, len(items))).round().astype(int))
+    real = [uint8_tensor_to_image(it["tactile"]) for it in items]
+    ex = spread(len(items), n_examples)
     ev = Evaluation([], None, "", markers)
-    ev.examples["object at pose"] = [_bgr(items[i]["condition"]) for i in ex]
+    ev.examples["object at pose"] = [uint8_tensor_to_image(items[i]["condition"]) for i in ex]
     ev.examples["real"] = [real[i] for i in ex]
     ev.references = _references(data, [items[i]["run"] for i in ex], model.cfg.image_size)
     ev.simulated = all(_simulated(path) for path in data.runs)
@@ -119,21 +112,15 @@ def evaluate(run_dir: str | Path, split_dir: str | Path, *, part: str = "test", 
     else:
         ev.baseline_note = "not asked for (--no-baseline)"
 
-    cond_all = torch.stack([it["condition"] for it in items])
-    wrench_all = torch.stack([it["wrench"] for it in items])
     if settings:  # warm-up: the first timed setting should not pay for first-call costs
-        model.diffusion.sample(model.net, scale_images(cond_all[:1].to(model.device)), wrench_all[:1].to(model.device),
-                               steps=2, sampler=settings[0][0])
+        list(model.generate_items(items[:1], steps=2, sampler=settings[0][0], seed=seed))
     for sampler, steps in settings:
-        g = torch.Generator(device=model.device).manual_seed(seed)
         made: list[np.ndarray] = []
         t0 = time.perf_counter()
-        for lo in range(0, len(items), batch_size):
-            cond = scale_images(cond_all[lo:lo + batch_size].to(model.device))
-            out = model.diffusion.sample(model.net, cond, wrench_all[lo:lo + batch_size].to(model.device),
-                                         steps=steps, sampler=sampler, generator=g)
-            made.extend(tensor_to_image(x) for x in out)
-            log(f"{sampler} {steps} steps: {len(made)}/{len(items)} frames")
+        for img in model.generate_items(items, steps=steps, sampler=sampler, seed=seed, batch_size=batch_size):
+            made.append(img)
+            if len(made) % batch_size == 0 or len(made) == len(items):
+                log(f"{sampler} {steps} steps: {len(made)}/{len(items)} frames")
         seconds = (time.perf_counter() - t0) / len(items)
         setting = f"{sampler}, {steps} steps"
         ev.rows.append(_score(setting, real, made, seconds, markers))

@@ -19,6 +19,19 @@ from model.network import ContactDenoiser
 from model.trainer import CheckpointError
 
 
+def generate_items(net, diffusion: Diffusion, items: list[dict], device, *, steps: int, sampler: str, seed: int,
+                   guidance: float = 1.0, batch_size: int = 64):
+    """Generated frames (BGR uint8), in order, for Dataset items (their condition and wrench),
+    ``batch_size`` at a time from one noise stream seeded with ``seed``."""
+    g = torch.Generator(device=device).manual_seed(seed)
+    for lo in range(0, len(items), batch_size):
+        chunk = items[lo:lo + batch_size]
+        cond = scale_images(torch.stack([it["condition"] for it in chunk]).to(device))
+        wrench = torch.stack([it["wrench"] for it in chunk]).to(device)
+        out = diffusion.sample(net, cond, wrench, steps=steps, sampler=sampler, guidance=guidance, generator=g)
+        yield from (tensor_to_image(x) for x in out)
+
+
 @dataclass
 class TrainedModel:
     net: ContactDenoiser
@@ -65,6 +78,10 @@ class TrainedModel:
                                     guidance=guidance, generator=g)[0]
         return tensor_to_image(out)
 
+    def generate_items(self, items: list[dict], **kwargs):
+        """``generate_items`` with this model's EMA weights."""
+        return generate_items(self.net, self.diffusion, items, self.device, **kwargs)
+
     def generate_split(self, split_dir: str | Path, part: str, out_dir: str | Path, *, limit: int | None = None,
                        steps: int = 50, sampler: str = "ddim", seed: int = 0, guidance: float = 1.0,
                        batch_size: int = 64, log=lambda line: None) -> int:
@@ -72,31 +89,26 @@ class TrainedModel:
         in ``out_dir`` with index.csv (run file, frame, wrench, pose, png). Returns the count."""
         import csv
 
-        from dataset.torch_dataset import TactileDataset
+        from dataset.torch_dataset import TactileDataset, spread
 
         data = TactileDataset(split_dir, part, size=self.cfg.image_size)
         if len(data) == 0:
             raise ValueError(f"{split_dir}: the {part} part is empty")
-        n = len(data) if limit is None else min(limit, len(data))
-        chosen = np.unique(np.linspace(0, len(data) - 1, n).round().astype(int))
+        items = [data[int(i)] for i in spread(len(data), limit)]
         out = Path(out_dir)
         out.mkdir(parents=True, exist_ok=True)
-        g = torch.Generator(device=self.device).manual_seed(seed)
+        made = self.generate_items(items, steps=steps, sampler=sampler, seed=seed, guidance=guidance,
+                                   batch_size=batch_size)
         with open(out / "index.csv", "w", newline="") as fh:
             writer = csv.writer(fh)
             writer.writerow(["run", "frame", "Fx_N", "Fy_N", "Fz_N", "Mx_Nmm", "My_Nmm", "Mz_Nmm",
                              "x_mm", "y_mm", "z_mm", "theta_deg", "png"])
-            for lo in range(0, len(chosen), batch_size):
-                items = [data[int(i)] for i in chosen[lo:lo + batch_size]]
-                cond = scale_images(torch.stack([it["condition"] for it in items]).to(self.device))
-                wrench = torch.stack([it["wrench"] for it in items]).to(self.device)
-                made = self.diffusion.sample(self.net, cond, wrench, steps=steps, sampler=sampler, guidance=guidance,
-                                             generator=g)
-                for it, img in zip(items, made):
-                    name = f"{it['run']:02d}-{it['frame']:06d}.png"
-                    cv2.imwrite(str(out / name), tensor_to_image(img))
-                    raw = it["wrench"].numpy() * data.std + data.mean
-                    writer.writerow([data.runs[it["run"]], it["frame"], *(f"{v:.6g}" for v in raw),
-                                     *(f"{v:.6g}" for v in it["pose"].numpy()), name])
-                log(f"{min(lo + batch_size, len(chosen))}/{len(chosen)} frames")
-        return len(chosen)
+            for k, (it, img) in enumerate(zip(items, made), 1):
+                name = f"{it['run']:02d}-{it['frame']:06d}.png"
+                cv2.imwrite(str(out / name), img)
+                raw = it["wrench"].numpy() * data.std + data.mean
+                writer.writerow([data.runs[it["run"]], it["frame"], *(f"{v:.6g}" for v in raw),
+                                 *(f"{v:.6g}" for v in it["pose"].numpy()), name])
+                if k % batch_size == 0 or k == len(items):
+                    log(f"{k}/{len(items)} frames")
+        return len(items)

@@ -52,23 +52,19 @@ class MarkerError:
 def marker_error(real: np.ndarray, generated: np.ndarray, n: int = CENTRAL) -> MarkerError:
     """Sum and mean of distances between the real frame's central n×n markers and their
     matches (minimum-cost assignment) among the generated frame's markers."""
-    a, b = _matched(real, generated, n)
+    a, b = marker_flow(real, generated, n)
     distances = np.linalg.norm(a - b, axis=1)
     return MarkerError(float(distances.sum()), float(distances.mean()), int(len(a)))
 
 
-def _matched(base: np.ndarray, other: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
-    """``base``'s central n×n marker centroids and their minimum-cost matches in ``other``."""
-    a = central(find_markers(base), base.shape[:2], n)
-    b = find_markers(other)
-    if len(b) == 0:
-        raise ValueError("no markers found in the frame compared")
-    cost = np.linalg.norm(a[:, None, :] - b[None, :, :], axis=2)
-    rows, cols = linear_sum_assignment(cost)
-    return a[rows], b[cols]
-
-
 def marker_flow(reference: np.ndarray, image: np.ndarray, n: int = CENTRAL) -> tuple[np.ndarray, np.ndarray]:
-    """Marker motion from the no-contact ``reference`` frame to ``image``: the reference's
-    central n×n marker centroids and their matches in ``image``, (n², 2) each (col, row)."""
-    return _matched(reference, image, n)
+    """The ``reference`` frame's central n×n marker centroids and their minimum-cost matches
+    among ``image``'s markers, (n², 2) each (col, row). From a no-contact reference frame,
+    this is the markers' motion."""
+    start = central(find_markers(reference), reference.shape[:2], n)
+    found = find_markers(image)
+    if len(found) == 0:
+        raise ValueError("no markers found in the frame compared")
+    cost = np.linalg.norm(start[:, None, :] - found[None, :, :], axis=2)
+    rows, cols = linear_sum_assignment(cost)
+    return start[rows], found[cols]

@@ -77,6 +77,7 @@ class Trainer:
         # each process its own noise stream; process 0's is the single-process one
         self.noise = torch.Generator(device=self.device).manual_seed(train_cfg.seed + 1 + 1000 * self.acc.process_index)
         self.losses: list[float] = []
+        self._validation: tuple[str, list[dict]] | None = None
 
     # -- data order: a pure function of (seed, step) ---------------------------------
     def batch_indices(self, step: int) -> np.ndarray:
@@ -128,29 +129,34 @@ class Trainer:
         fixed set of held-out frames (the val part, else test). Touches no training state."""
         if not self.main:
             return None
-        from dataset.split import load_split
-        from dataset.torch_dataset import scale_images, tensor_to_image
+        from dataset.torch_dataset import uint8_tensor_to_image
         from model.figures import samples_figure
+        from model.inference import generate_items
 
-        _, parts = load_split(self.split_dir)
-        part = "val" if "val" in parts else "test"
-        data = TactileDataset(self.split_dir, part, size=self.model_cfg.image_size)
-        if len(data) == 0:
+        part, items = self._validation_items()
+        if not items:
             return None
-        chosen = np.unique(np.linspace(0, len(data) - 1, min(self.cfg.samples, len(data))).round().astype(int))
-        items = [data[int(i)] for i in chosen]
-        cond = torch.stack([it["condition"] for it in items])
-        g = torch.Generator(device=self.device).manual_seed(self.cfg.seed)
-        made = self.diffusion.sample(self.ema, scale_images(cond.to(self.device)),
-                                     torch.stack([it["wrench"] for it in items]).to(self.device),
-                                     steps=self.cfg.sample_steps, sampler="ddim", generator=g)
-        bgr = lambda t: np.ascontiguousarray(t.numpy().transpose(1, 2, 0)[..., ::-1])  # noqa: E731
+        made = generate_items(self.ema, self.diffusion, items, self.device, steps=self.cfg.sample_steps,
+                              sampler="ddim", seed=self.cfg.seed)
         path = self.out / "samples" / f"step-{self.step:06d}.png"
         path.parent.mkdir(parents=True, exist_ok=True)
-        samples_figure({"object at pose": [bgr(c) for c in cond], "real": [bgr(it["tactile"]) for it in items],
-                        f"step {self.step}": [tensor_to_image(x) for x in made]}, path)
+        samples_figure({"object at pose": [uint8_tensor_to_image(it["condition"]) for it in items],
+                        "real": [uint8_tensor_to_image(it["tactile"]) for it in items],
+                        f"step {self.step}": list(made)}, path)
         self.log(f"validation samples ({part}): {path}")
         return path
+
+    def _validation_items(self) -> tuple[str, list[dict]]:
+        """The held-out frames every validation PNG shows: read once."""
+        if self._validation is None:
+            from dataset.split import load_split
+            from dataset.torch_dataset import spread
+
+            _, parts = load_split(self.split_dir)
+            part = "val" if "val" in parts else "test"
+            data = TactileDataset(self.split_dir, part, size=self.model_cfg.image_size)
+            self._validation = part, [data[int(i)] for i in spread(len(data), self.cfg.samples)]
+        return self._validation
 
     # -- checkpoints -------------------------------------------------------------------
     def save(self) -> Path:
