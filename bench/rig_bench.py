@@ -18,10 +18,12 @@ import time
 from pathlib import Path
 
 from rig.clock import SystemClock
+from rig.drivers.ati_netft import AtiNetFT
 from rig.drivers.ft300 import FT300
 from rig.drivers.m8128 import M8128
 from rig.drivers.pr_drive import PrDriveAxis
 from rig.drivers.zaber import ZaberAxis, ZaberChain
+from rig.sim.ati_netft_sim import AtiNetFtSim
 from rig.sim.ft300_sim import Ft300Sim
 from rig.sim.link import SimServer
 from rig.sim.m8128_sim import M8128Sim
@@ -78,6 +80,12 @@ def latency_rows(n: int) -> list[str]:
         m = M8128(SerialLink(srv.url, baudrate=115200, timeout_s=0.5, device="m8128"), clock)
         rows.append(row("M8128 single wrench read (`AT+GOD`)", transport, timed(m.read, n)))
         m.close(); m.link.close(); srv.close()
+
+    # Net F/T: UDP on loopback whatever the serial transport; one row.
+    sim = AtiNetFtSim(world)
+    g = AtiNetFT(sim.host, clock, rdt_port=sim.rdt_port, http_port=sim.http_port)
+    rows.append(row("ATI Net F/T polled record (RDT cmd 2, count 1)", "udp", timed(g.read, n)))
+    g.close(); sim.close()
     return rows
 
 
@@ -86,11 +94,17 @@ def stream_rows(seconds: float) -> list[str]:
     world = SimWorld(clock)
     rows = []
     cases = [("FT300 stream", "ft300", 100.0), ("M8128 stream", "m8128", 100.0),
-             ("M8128 stream", "m8128", 1000.0), ("FT300 stream (sim pushed to 2 kHz)", "ft300", 2000.0)]
+             ("M8128 stream", "m8128", 1000.0), ("FT300 stream (sim pushed to 2 kHz)", "ft300", 2000.0),
+             ("Net F/T RDT real-time (udp)", "netft", 1000.0), ("Net F/T RDT real-time (udp)", "netft", 7000.0),
+             ("Net F/T RDT buffered ×40 (udp)", "netft-buffered", 7000.0)]
     for name, kind, rate in cases:
         if kind == "ft300":
             srv = SimServer(Ft300Sim(world, rate_hz=rate), clock)
             g = FT300(ModbusBus(srv.url, baudrate=19200, timeout_s=0.5, retries=0, device="ft300"), clock)
+        elif kind.startswith("netft"):
+            srv = AtiNetFtSim(world, rate_hz=rate, buffer_size=40)
+            g = AtiNetFT(srv.host, clock, rdt_port=srv.rdt_port, http_port=srv.http_port,
+                         mode="buffered" if kind == "netft-buffered" else "realtime")
         else:
             srv = SimServer(M8128Sim(world, rate_hz=rate), clock)
             g = M8128(SerialLink(srv.url, baudrate=115200, timeout_s=0.5, device="m8128"), clock, rate_hz=int(rate))

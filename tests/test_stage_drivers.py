@@ -2,6 +2,7 @@
 
 import pytest
 
+from rig.drivers import zaber_ascii as za
 from rig.drivers.pr_drive import PrDriveAxis
 from rig.drivers.zaber import ZaberAxis, ZaberChain
 from rig.errors import DeviceFault, DeviceRejected
@@ -80,6 +81,93 @@ def test_zaber_stall_reported_as_fault_flag(zaber, world, manual_clock):
     assert x.faults(st) == ["FS (stalled and stopped)"]
     x.clear_warnings()
     assert x.faults(x.status()) == []
+
+
+# -- byte-exact exchanges with the Zaber simulator -------------------------------------
+# Sources: Zaber ASCII protocol manual (zaber.com/protocol-manual?protocol=ascii),
+# sections "Command Format", "Reply Format", "Message IDs", "Checksums", "Settings";
+# and the lines zaber-motion 10.3.0 sends to identify a device (its log, docs/hardware.md).
+# x starts at 12.5 mm = 262467 microsteps of 0.047625 µm; z at 15 mm = 314961.
+
+
+def _exchange(link: SerialLink, command: bytes, n_replies: int = 1) -> list[bytes]:
+    link.write(command, command.decode().strip())
+    return [link.read_until(b"\n", command.decode().strip()) for _ in range(n_replies)]
+
+
+@pytest.fixture
+def zaber_link(zaber):
+    chain, _ = zaber
+    return chain.link
+
+
+def test_zaber_answers_zaber_motion_identification_byte_exact(zaber_link):
+    # Each line as zaber-motion 10.3.0 sends it: two-digit message id, checksum.
+    table = [
+        (b"/0 0 00:00\n", [b"@01 0 00 OK IDLE -- 0:0D\r\n", b"@03 0 00 OK IDLE -- 0:0B\r\n"]),
+        (b"/1 0 01 get comm.packet.size.max:CF\n", [b"@01 0 01 OK IDLE -- 80:D4\r\n"]),
+        (b"/1 0 02 get deviceid:40\n", [b"@01 0 02 OK IDLE -- 50030:43\r\n"]),  # X-LSM025A
+        (b"/1 0 03 get system.serial:29\n", [b"@01 0 03 OK IDLE -- 33001:43\r\n"]),
+        (b"/1 0 04 get version:75\n", [b"@01 0 04 OK IDLE -- 7.33:6E\r\n"]),
+        (b"/1 0 05 get version.build:36\n", [b"@01 0 05 OK IDLE -- 16000:41\r\n"]),
+        # A setting newer than the modelled firmware: rejected, and zaber-motion carries on.
+        (b"/1 0 06 get device.hw.modified:8D\n", [b"@01 0 06 RJ IDLE -- BADCOMMAND:6F\r\n"]),
+        (b"/1 0 10 get system.axiscount:CD\n", [b"@01 0 10 OK IDLE -- 1:0B\r\n"]),
+        (b"/1 1 11 get resolution:28\n", [b"@01 1 11 OK IDLE -- 64:D0\r\n"]),
+        # An integrated stage has no peripheral: rejected, zaber-motion then treats it as integrated.
+        (b"/1 1 12 get peripheralid:82\n", [b"@01 1 12 RJ IDLE -- BADCOMMAND:71\r\n"]),
+    ]
+    for command, replies in table:
+        assert _exchange(zaber_link, command, len(replies)) == replies, command
+
+
+def test_zaber_command_without_address_goes_to_every_device_in_address_order(zaber_link):
+    # Manual, "Command Format": device and axis are optional; no address means all devices.
+    assert _exchange(zaber_link, b"/get pos\n", 2) == [b"@01 0 OK IDLE -- 262467\r\n",
+                                                        b"@03 0 OK IDLE -- 314961\r\n"]
+    assert _exchange(zaber_link, b"/3 get pos\n") == [b"@03 0 OK IDLE -- 314961\r\n"]
+
+
+def test_zaber_one_digit_message_id_is_answered_with_two(zaber_link):
+    # Manual, "Message IDs": an id of 0-99 after device and axis, echoed in the reply.
+    assert _exchange(zaber_link, b"/1 1 5 get pos\n") == [b"@01 1 05 OK IDLE -- 262467\r\n"]
+
+
+def test_zaber_driver_sends_padded_ids_and_accepts_one_digit_replies():
+    assert za.format_command(1, 1, "get pos", 5, True) == b"/1 1 05 get pos:27\n"
+    reply = za.parse_reply(b"@01 1 5 OK IDLE -- 262467\r\n")
+    assert (reply.message_id, reply.data) == (5, "262467")
+    assert za.parse_reply(b"@01 1 05 OK IDLE -- 0\r\n").message_id == 5
+
+
+def test_zaber_device_setting_of_an_axis_is_deviceonly(zaber_link):
+    assert _exchange(zaber_link, b"/1 1 get deviceid\n") == [b"@01 1 RJ IDLE -- DEVICEONLY\r\n"]
+
+
+def test_zaber_move_vel_runs_until_stop(zaber_link, world, manual_clock):
+    # 34402 = 1 mm/s: 1 / 0.047625e-3 µsteps/s × 1.6384 (manual, "move vel", "maxspeed").
+    assert _exchange(zaber_link, b"/1 1 move vel 34402\n") == [b"@01 1 OK BUSY -- 0\r\n"]
+    manual_clock.advance(2.0)
+    assert _exchange(zaber_link, b"/1 1 stop\n") == [b"@01 1 OK IDLE -- 0\r\n"]
+    moved = world.stages["x"].position(manual_clock.now()) - 12.5
+    assert 1.9 < moved < 2.0  # 2 s at 1 mm/s less the 0.05 s ramp (20 mm/s²)
+    assert _exchange(zaber_link, b"/1 1 move vel -34402\n") == [b"@01 1 OK BUSY -- 0\r\n"]
+    manual_clock.advance(60.0)  # stops at the travel's end
+    assert _exchange(zaber_link, b"/1 1 get pos\n") == [b"@01 1 OK IDLE -- 0\r\n"]
+
+
+def test_zaber_settings_zaber_motion_reads_and_writes(zaber_link, world, manual_clock):
+    assert _exchange(zaber_link, b"/1 1 get limit.max\n") == [b"@01 1 OK IDLE -- 524934\r\n"]  # 25 mm
+    assert _exchange(zaber_link, b"/1 1 get accel\n") == [b"@01 1 OK IDLE -- 205\r\n"]
+    assert _exchange(zaber_link, b"/1 1 set accel 300\n") == [b"@01 1 OK IDLE -- 0\r\n"]
+    assert _exchange(zaber_link, b"/1 1 get accel\n") == [b"@01 1 OK IDLE -- 300\r\n"]
+    # set pos re-references without moving the carriage (manual, "pos").
+    assert _exchange(zaber_link, b"/1 1 set pos 1000\n") == [b"@01 1 OK IDLE -- 0\r\n"]
+    assert _exchange(zaber_link, b"/1 1 get pos\n") == [b"@01 1 OK IDLE -- 1000\r\n"]
+    assert world.stages["x"].position(manual_clock.now()) == pytest.approx(12.5)
+    assert _exchange(zaber_link, b"/1 1 move abs 2000\n") == [b"@01 1 OK BUSY -- 0\r\n"]
+    manual_clock.advance(5.0)
+    assert world.stages["x"].position(manual_clock.now()) == pytest.approx(12.5 + 1000 * US)
 
 
 @pytest.fixture(params=["pty", "tcp"])

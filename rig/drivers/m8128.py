@@ -1,10 +1,13 @@
 """SRI M8128 six-axis interface over serial (115200) or TCP (port 4008).
 
-ASCII commands (``AT+SMPF=<Hz>``, ``AT+DCKMD=SUM``, ``AT+GOD`` one sample,
-``AT+GSD`` stream, ``AT+GSD=STOP``) answered ``ACK+...$OK\\r\\n``; data frames are
-``0xAA 0x55, length (u16 BE, 27), packet number (u16 BE), six float32 LE, sum byte``
-with forces in N and moments in N·m. The sum byte is the low byte of the sum of the
-24 data bytes.
+From SRI's M8128 manual (command section "GSD", its worked ``AT+GOD`` example, and
+the "Step 1 SMPF, Step 2 GOD/GSD" procedure): ASCII commands end in CR LF
+(``AT+SMPF=<Hz>``, ``AT+DCKMD=SUM``, ``AT+GOD`` one sample, ``AT+GSD`` stream,
+``AT+GSD=STOP``); settings are answered ``ACK+<cmd>=<value>$OK\\r\\n``. A data frame
+is ``0xAA 0x55, PackageLength (u16 BE) = 2 + 6×4×1 + 1 = 27, PackageNo (u16 BE, 0 to
+65535 then wraps: gaps are lost packets), six float32 LE, SUM`` where SUM is the low
+byte of the sum of the 24 data bytes only. Values are engineering units of the
+decoupling matrix: N and N·m on SRI-calibrated sensors (converted to N·mm here).
 """
 
 from __future__ import annotations
@@ -25,11 +28,52 @@ UNITS = np.array([1.0, 1.0, 1.0, 1000.0, 1000.0, 1000.0])  # N, N, N, N·m→N·
 
 
 def frame_valid(frame: bytes) -> bool:
+    """Header, length, sum byte, and six finite numbers: a NaN frame is never a value."""
     if len(frame) != FRAME_LENGTH or frame[:2] != FRAME_HEADER:
         return False
     if int.from_bytes(frame[2:4], "big") != PAYLOAD_LENGTH:
         return False
-    return sum(frame[6:30]) & 0xFF == frame[30]
+    if sum(frame[6:30]) & 0xFF != frame[30]:
+        return False
+    return bool(np.all(np.isfinite(struct.unpack("<6f", frame[6:30]))))
+
+
+def packet_number(frame: bytes) -> int:
+    return int.from_bytes(frame[4:6], "big")
+
+
+SEQUENCE_WINDOW = 64  # a packet-number jump beyond this is a resync, not a loss
+
+
+class PacketSync(FrameSync):
+    """Frames in packet-number order: a small jump counts lost packets, a repeat is dropped.
+
+    The SUM byte does not cover the packet number, so a corrupted number passes the
+    sum; a jump beyond ``SEQUENCE_WINDOW`` either way is counted as a resync and the
+    frame kept, so one bad number cannot make the following frames look old.
+    """
+
+    def __init__(self):
+        super().__init__(FRAME_HEADER, FRAME_LENGTH, frame_valid)
+        self.last_packet: int | None = None
+        self.lost = self.out_of_order = self.resyncs = 0
+
+    def feed(self, data: bytes) -> list[bytes]:
+        out = []
+        for frame in super().feed(data):
+            n = packet_number(frame)
+            if self.last_packet is not None:
+                step = (n - self.last_packet + 0x8000) % 0x10000 - 0x8000  # 0..65535 wraps
+                if -SEQUENCE_WINDOW < step <= 0:
+                    self.out_of_order += 1
+                    continue
+                if 0 < step <= SEQUENCE_WINDOW:
+                    self.lost += step - 1
+                else:
+                    self.resyncs += 1
+            self.last_packet = n
+            out.append(frame)
+        return out
 
 
 def decode_frame(frame: bytes) -> np.ndarray:
@@ -51,8 +95,14 @@ class M8128(GaugeBase):
         self.rate_hz = rate_hz
         self.label = f"{name} (SRI M8128 on {link.url})"
 
-    def make_sync(self) -> FrameSync:
-        return FrameSync(FRAME_HEADER, FRAME_LENGTH, frame_valid)
+    def make_sync(self) -> PacketSync:
+        return PacketSync()
+
+    def stream_stats(self) -> dict:
+        stats = super().stream_stats()
+        sync = self._reader.sync if self._reader else None
+        stats.update({k: getattr(sync, k) if sync else 0 for k in ("lost", "out_of_order", "resyncs")})
+        return stats
 
     decode = staticmethod(decode_frame)
 
@@ -76,7 +126,7 @@ class M8128(GaugeBase):
             self.link.write(b"AT+GOD\r\n", "AT+GOD")
             frame = self.link.read_exact(FRAME_LENGTH, "AT+GOD")
         if not frame_valid(frame):
-            raise FramingError(self.label, "AT+GOD", frame, "bad header, length or sum byte")
+            raise FramingError(self.label, "AT+GOD", frame, "bad header, length, sum byte or a non-finite value")
         return decode_frame(frame)
 
     def _stream_open(self):

@@ -2,6 +2,8 @@
 
 Command ``/<device> <axis> <id> <command>[:<checksum>]\\n``; reply
 ``@<dd> <a> <id> <OK|RJ> <IDLE|BUSY> <flag> <data>[:<checksum>]\\r\\n``.
+Message ids are 0-99; we send them as two digits, as zaber-motion does, and accept
+one or two digits back, as Zaber's other clients do (manual, "Message IDs").
 The checksum is the two's complement of the byte sum (mod 256) of everything
 between the leading ``/``/``@`` and the ``:``, as two upper-case hex digits.
 """
@@ -41,7 +43,7 @@ NOT_REFERENCED = {"WH", "WR"}
 VELOCITY_UNITS_PER_USTEP_S = 1.6384
 
 _REPLY = re.compile(
-    r"^@(?P<device>\d{2}) (?P<axis>\d+) (?:(?P<id>\d{2}) )?(?P<flag>OK|RJ) (?P<status>IDLE|BUSY) "
+    r"^@(?P<device>\d{2}) (?P<axis>\d+) (?:(?P<id>\d{1,2}) )?(?P<flag>OK|RJ) (?P<status>IDLE|BUSY) "
     r"(?P<warning>\S\S) (?P<data>[^:\r\n]*?)(?::(?P<checksum>[0-9A-F]{2}))?\r?\n$"
 )
 
@@ -54,7 +56,7 @@ def format_command(device: int, axis: int, command: str, message_id: int | None 
                    with_checksum: bool = False) -> bytes:
     body = f"{device} {axis}"
     if message_id is not None:
-        body += f" {message_id}"
+        body += f" {message_id:02d}"
     if command:
         body += f" {command}"
     if with_checksum:

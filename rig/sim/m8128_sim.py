@@ -1,4 +1,9 @@
-"""A simulated SRI M8128 interface: AT commands, single samples and streaming."""
+"""A simulated SRI M8128 interface: AT commands, single samples and streaming.
+
+Follows SRI's M8128 manual where it speaks (frame layout, SUM over the data bytes,
+packet numbers from 0 wrapping after 65535, ``ACK+DCKMD=SUM$OK``); what it does not
+show is assumed and listed in docs/hardware.md ("SRI M8128: sources").
+"""
 
 from __future__ import annotations
 
@@ -12,12 +17,13 @@ class M8128Sim:
         self.world = world
         self.rate_hz = rate_hz
         self.schedule = SampleSchedule(rate_hz)
-        self.packet = 0
+        self.packet = 0  # the number of the next frame: the manual counts from 0
         self._buf = b""
 
     def _frame(self, values) -> bytes:
-        self.packet += 1
-        return m8.encode_frame(values, self.packet)
+        frame = m8.encode_frame(values, self.packet)
+        self.packet = (self.packet + 1) & 0xFFFF
+        return frame
 
     def feed(self, data: bytes, now_s: float) -> list[bytes]:
         self._buf += data
@@ -28,6 +34,8 @@ class M8128Sim:
         return out
 
     def _command(self, cmd: str, now_s: float) -> list[bytes]:
+        if cmd == "AT+SMPF=?":  # assumed: a query is answered like a setting
+            return [f"ACK+SMPF={self.rate_hz:g}$OK\r\n".encode()]
         if cmd.startswith("AT+SMPF="):
             try:
                 rate = int(cmd.split("=", 1)[1])

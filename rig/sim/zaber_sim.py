@@ -1,33 +1,62 @@
-"""A Zaber ASCII daisy chain: one or more single-axis devices on one port.
+"""A Zaber ASCII daisy chain: one or more single-axis integrated devices on one port.
 
-Speaks the bytes of the real protocol (message ids, optional checksums, warning
-flags, rejections) and moves the world's stages. A command with a bad checksum is
-ignored, so the host sees a timeout and retries.
+Speaks the bytes of the real protocol (Zaber ASCII protocol manual, "Command
+Format", "Reply Format", "Message IDs", "Checksums", "Warning Flags", "Settings")
+and moves the world's stages. Each device answers the identification zaber-motion
+sends (deviceid, system.serial, version, version.build, comm.packet.size.max,
+system.axiscount, resolution) so Zaber's own library identifies it as the product
+it models (an X-LSM025A by default: docs/hardware.md, "Zaber"). A command with a
+bad checksum is ignored, so the host sees a timeout and retries.
 """
 
 from __future__ import annotations
 
-from rig.sim.link import RequestReplyDevice
-
 from dataclasses import dataclass
 
 from rig.drivers import zaber_ascii as za
+from rig.sim.link import RequestReplyDevice
 from rig.sim.stage import SimStage, StageFault
+
+# X-LSM025A: device id from Zaber's id map (zaber.com/id-mapping), 0.047625 µm
+# microstep at the default resolution of 64 (zaber.com/manuals/X-LSM, specifications).
+X_LSM025A_DEVICE_ID = 50030
+# Native acceleration: 1 data unit = 10000 / 1.6384 microsteps/s² (manual, "accel").
+ACCEL_UNITS_PER_USTEP_S2 = 1.6384 / 10000
+# Settings that belong to the device, not to an axis: asking them of axis 1 is
+# rejected DEVICEONLY (manual, "Reply Format", rejection reasons).
+DEVICE_SETTINGS = ("deviceid", "system.serial", "version", "version.build", "comm.packet.size.max",
+                   "system.axiscount")
 
 
 @dataclass
 class ZaberDeviceSim:
     stage: SimStage
     microstep: float  # stage units (mm or deg) per microstep
-    maxspeed: int = 153600  # native velocity units
-    accel: int = 205  # native acceleration units (informational)
-    cleared_warnings: bool = False
+    maxspeed: int = 153600  # native velocity units (manual default for X-series stages)
+    accel: int = 205  # native acceleration units; settable, the stage's own ramp is used
+    device_id: int = X_LSM025A_DEVICE_ID
+    serial: int = 0  # 0: the chain gives each device a distinct one
+    version: str = "7.33"
+    build: int = 16000  # assumed: any build identifies; tests/data's store names it
+    resolution: int = 64
+    packet_size_max: int = 80  # longest command line accepted (manual, comm.packet.size.max)
+    pos_offset: float = 0.0  # stage position at native 0; `set pos` moves it, homing clears it
+
+    # native units, in one place
+    def to_native(self, position: float) -> int:
+        return round((position - self.pos_offset) / self.microstep)
+
+    def speed(self, native_velocity: int) -> float:
+        return abs(native_velocity) / za.VELOCITY_UNITS_PER_USTEP_S * self.microstep
 
 
 class ZaberChainSim(RequestReplyDevice):
     def __init__(self, clock, devices: dict[int, ZaberDeviceSim]):
         self.clock = clock
-        self.devices = devices
+        self.devices = dict(sorted(devices.items()))  # broadcast replies come in address order
+        for number, dev in self.devices.items():
+            if dev.serial == 0:
+                dev.serial = 33000 + number
         self._buf = b""
 
     def feed(self, data: bytes, now_s: float) -> list[bytes]:
@@ -50,26 +79,16 @@ class ZaberChainSim(RequestReplyDevice):
         with_checksum = False
         if ":" in body:
             body, given = body.rsplit(":", 1)
-            if za.checksum(body) != given.upper():
+            if za.checksum(body) != given.strip().upper():
                 return []
             with_checksum = True
-        words = body.split()
-        device = int(words[0]) if words and words[0].isdigit() else 0
-        axis = int(words[1]) if len(words) > 1 and words[1].isdigit() else 0
-        rest = words[2:] if len(words) > 1 and words[1].isdigit() else words[1:]
-        msg_id = None
-        if rest and rest[0].isdigit() and len(rest[0]) <= 2:
-            msg_id = int(rest[0])
-            rest = rest[1:]
-        targets = self.devices if device == 0 else ({device: self.devices[device]} if device in self.devices else {})
-        replies = []
-        for number, dev in targets.items():
-            replies.append(self._reply(number, dev, axis, msg_id, rest, now_s, with_checksum))
-        return replies
-
-    def _flag(self, dev: ZaberDeviceSim) -> str:
-        flags = self._flags(dev)
-        return flags[0] if flags else "--"
+        device, axis, msg_id, words = parse_command(body)
+        if device == 0:
+            targets = self.devices
+        else:
+            targets = {device: self.devices[device]} if device in self.devices else {}
+        return [self._reply(number, dev, axis, msg_id, words, now_s, with_checksum)
+                for number, dev in targets.items()]
 
     def _flags(self, dev: ZaberDeviceSim) -> list[str]:
         flags = []
@@ -81,61 +100,122 @@ class ZaberChainSim(RequestReplyDevice):
 
     def _reply(self, number: int, dev: ZaberDeviceSim, axis: int, msg_id, words: list[str], now_s: float,
                with_checksum: bool) -> bytes:
-        ok, data = self._execute(dev, axis, words, now_s)
-        status = "BUSY" if dev.stage.busy(now_s) else "IDLE"
+        with dev.stage.lock:
+            ok, data = self._execute(dev, axis, words, now_s)
+            status = "BUSY" if dev.stage.busy(now_s) else "IDLE"
+            flags = self._flags(dev)
         body = f"{number:02d} {axis}"
         if msg_id is not None:
             body += f" {msg_id:02d}"
-        body += f" {'OK' if ok else 'RJ'} {status} {self._flag(dev)} {data}"
+        body += f" {'OK' if ok else 'RJ'} {status} {flags[0] if flags else '--'} {data}"
         if with_checksum:
             body += ":" + za.checksum(body)
         return f"@{body}\r\n".encode("ascii")
 
     def _execute(self, dev: ZaberDeviceSim, axis: int, words: list[str], now_s: float) -> tuple[bool, str]:
-        stage = dev.stage
         if axis not in (0, 1):
             return False, "BADAXIS"
-        cmd = " ".join(words)
-        if cmd == "":
+        if not words:
             return True, "0"
-        if cmd == "get pos":
-            return True, str(round(stage.position(now_s) / dev.microstep))
-        if cmd == "get maxspeed":
-            return True, str(dev.maxspeed)
-        if cmd == "warnings":
+        if words[0] == "get" and len(words) == 2:
+            return self._get(dev, axis, words[1], now_s)
+        if words[0] == "set" and len(words) == 3:
+            return self._set(dev, axis, words[1], words[2], now_s)
+        if words[0] == "warnings" and len(words) <= 2:
             flags = self._flags(dev)
+            if words[1:] == ["clear"]:
+                dev.stage.clear_stall()
+            elif words[1:]:
+                return False, "BADCOMMAND"
             return True, " ".join([f"{len(flags):02d}", *flags])
-        if cmd == "warnings clear":
-            flags = self._flags(dev)
-            stage.clear_stall()
-            return True, " ".join([f"{len(flags):02d}", *flags])
-        if cmd in ("stop", "estop"):
-            stage.stop(now_s)
+        if words in (["stop"], ["estop"]):
+            dev.stage.stop(now_s)
             return True, "0"
-        if cmd == "home":
-            stage.home(now_s)
+        if words == ["home"]:
+            dev.pos_offset = 0.0  # the home switch is native 0
+            dev.stage.home(now_s)
             return True, "0"
-        if len(words) == 3 and words[0] == "set" and words[1] in ("maxspeed", "accel"):
-            try:
-                value = int(words[2])
-            except ValueError:
-                return False, "BADDATA"
-            if value <= 0:
-                return False, "BADDATA"
-            setattr(dev, words[1], value)
-            return True, "0"
-        if len(words) == 3 and words[0] == "move" and words[1] in ("abs", "rel"):
-            try:
-                value = int(words[2])
-            except ValueError:
-                return False, "BADDATA"
-            target = value * dev.microstep
-            if words[1] == "rel":
-                target += stage.position(now_s)
-            speed = dev.maxspeed / za.VELOCITY_UNITS_PER_USTEP_S * dev.microstep
-            try:
-                stage.move_to(target, speed, now_s)
-            except StageFault:
-                return False, "BADDATA"
-            return True, "0"
+        if words[0] == "move":
+            return self._move(dev, words[1:], now_s)
         return False, "BADCOMMAND"
+
+    def _limits(self, dev: ZaberDeviceSim) -> tuple[int, int]:
+        lo, hi = dev.stage.spec.travel
+        return dev.to_native(lo), dev.to_native(hi)
+
+    def _get(self, dev: ZaberDeviceSim, axis: int, name: str, now_s: float) -> tuple[bool, str]:
+        if name in DEVICE_SETTINGS and axis != 0:
+            return False, "DEVICEONLY"
+        lo, hi = self._limits(dev)
+        values = {
+            "deviceid": dev.device_id, "system.serial": dev.serial, "version": dev.version,
+            "version.build": dev.build, "comm.packet.size.max": dev.packet_size_max, "system.axiscount": 1,
+            "resolution": dev.resolution, "pos": dev.to_native(dev.stage.position(now_s)),
+            "maxspeed": dev.maxspeed, "accel": dev.accel, "limit.min": lo, "limit.max": hi,
+        }
+        if name not in values:
+            # Also what an integrated device answers for peripheralid / peripheral.id
+            # (no peripheral) and what older firmware answers for newer settings.
+            return False, "BADCOMMAND"
+        return True, str(values[name])
+
+    def _set(self, dev: ZaberDeviceSim, axis: int, name: str, text: str, now_s: float) -> tuple[bool, str]:
+        if name not in ("maxspeed", "accel", "pos"):
+            return False, "BADCOMMAND"
+        try:
+            value = int(text)
+        except ValueError:
+            return False, "BADDATA"
+        if name == "pos":
+            # Re-reference without moving: the carriage stays, its number changes.
+            dev.pos_offset = dev.stage.position(now_s) - value * dev.microstep
+            return True, "0"
+        if value <= 0:
+            return False, "BADDATA"
+        setattr(dev, name, value)
+        return True, "0"
+
+    def _move(self, dev: ZaberDeviceSim, args: list[str], now_s: float) -> tuple[bool, str]:
+        lo, hi = dev.stage.spec.travel
+        if args in (["min"], ["max"]):
+            target, speed = (lo if args == ["min"] else hi), dev.speed(dev.maxspeed)
+        elif len(args) == 2 and args[0] in ("abs", "rel", "vel"):
+            try:
+                value = int(args[1])
+            except ValueError:
+                return False, "BADDATA"
+            if args[0] == "vel":
+                if value == 0:
+                    dev.stage.stop(now_s)
+                    return True, "0"
+                # A velocity move runs until stopped or until the travel limit.
+                target, speed = (hi if value > 0 else lo), dev.speed(value)
+            else:
+                start = dev.stage.position(now_s) if args[0] == "rel" else dev.pos_offset
+                target = start + value * dev.microstep
+                speed = dev.speed(dev.maxspeed)
+        else:
+            return False, "BADCOMMAND"
+        try:
+            dev.stage.move_to(target, speed, now_s)
+        except StageFault:
+            return False, "BADDATA"
+        return True, "0"
+
+
+def parse_command(body: str) -> tuple[int, int, int | None, list[str]]:
+    """``[device] [axis] [id] words`` → (device, axis, message id, words).
+
+    Device and axis are optional (manual, "Command Format"): a command with neither
+    goes to every device (``/get pos``); a message id needs both before it.
+    """
+    words = body.split()
+    device = axis = 0
+    msg_id = None
+    if words and words[0].isdigit():
+        device, words = int(words[0]), words[1:]
+        if words and words[0].isdigit():
+            axis, words = int(words[0]), words[1:]
+            if words and words[0].isdigit() and len(words[0]) <= 2:
+                msg_id, words = int(words[0]), words[1:]
+    return device, axis, msg_id, words
