@@ -1,0 +1,185 @@
+"""A sensor profile: what makes one tactile sensor, in one TOML file and a background PNG.
+
+    profile = load_profile("my_sensor.toml")     # my_sensor.png beside it
+    save_profile(profile, "copy.toml")           # writes copy.toml and copy.png
+    default_profile()                            # the shipped GelSight Mini profile
+
+It holds the frame size, the scale (mm per pixel), the gel (thickness, modulus), the
+optics (``LightModel``: normal lookup table, blur, shading), the marker layout for
+marker kinds and the sensor noise. Every value is checked on load: a missing key,
+a NaN or infinity, or a value out of range is a ``ProfileError`` naming the file and key.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from rig.sim.tactile.contact import SensorGeometry
+from rig.sim.tactile.optics import SHADINGS, LightModel, OpticsSpec
+
+DEFAULT_PROFILE = Path(__file__).parent / "data" / "gelsight_mini.toml"
+
+
+class ProfileError(ValueError):
+    """A sensor profile file that cannot be used; the message names the file and key."""
+
+
+@dataclass(frozen=True)
+class SensorProfile:
+    name: str
+    source: str  # where the calibration frames came from, and their licence
+    width_px: int
+    height_px: int
+    mm_per_px: float
+    gel_thickness_mm: float
+    gel_E_MPa: float
+    noise_std: float  # grey levels per pixel and channel
+    light: LightModel
+    background: np.ndarray  # BGR uint8 no-contact frame, the frame's aspect ratio, any resolution
+    marker_pitch_mm: float = 0.7
+    marker_radius_mm: float = 0.17
+    marker_darkness: float = 0.8
+
+    def geometry(self) -> SensorGeometry:
+        return SensorGeometry(width_mm=self.width_px * self.mm_per_px, height_mm=self.height_px * self.mm_per_px)
+
+    def optics_spec(self, kind: str = "rgb") -> OpticsSpec:
+        return OpticsSpec(kind=kind, height_px=self.height_px, width_px=self.width_px, noise_std=self.noise_std,
+                          marker_pitch_mm=self.marker_pitch_mm, marker_radius_mm=self.marker_radius_mm,
+                          marker_darkness=self.marker_darkness)
+
+
+# (section, key, low, high): the ranges a profile's numbers must lie in.
+NUMBERS = (
+    ("sensor", "width_px", 16, 4096), ("sensor", "height_px", 16, 4096), ("sensor", "mm_per_px", 1e-4, 1.0),
+    ("sensor", "noise_std", 0.0, 50.0), ("gel", "thickness_mm", 0.05, 50.0), ("gel", "E_MPa", 1e-3, 1e3),
+    ("optics", "blur_mm", 0.0, 5.0), ("markers", "pitch_mm", 0.05, 10.0), ("markers", "radius_mm", 0.0, 5.0),
+    ("markers", "darkness", 0.0, 1.0),
+)
+
+
+def _get(path: Path, data: dict, section: str, key: str):
+    if section not in data or not isinstance(data[section], dict):
+        raise ProfileError(f"{path}: missing section [{section}]")
+    if key not in data[section]:
+        raise ProfileError(f"{path}: missing key [{section}] {key}")
+    return data[section][key]
+
+
+def _number(path: Path, data: dict, section: str, key: str, low: float, high: float) -> float:
+    value = _get(path, data, section, key)
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or not low <= value <= high:
+        raise ProfileError(f"{path}: [{section}] {key} must be a finite number in [{low:g}, {high:g}], got {value!r}")
+    return value
+
+
+def _table(path: Path, data: dict, name: str, bins: int) -> np.ndarray:
+    value = _get(path, data, "optics", name)
+    try:
+        table = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ProfileError(f"{path}: [optics] {name} must be a {bins}×{bins} array of numbers") from None
+    if table.shape != (bins, bins):
+        raise ProfileError(f"{path}: [optics] {name} must be {bins}×{bins} (table_bins), got shape {table.shape}")
+    if not np.all(np.isfinite(table)) or np.abs(table).max() > 255:
+        raise ProfileError(f"{path}: [optics] {name} entries must be finite and within ±255 grey levels")
+    return table
+
+
+def load_profile(path: str | Path) -> SensorProfile:
+    """Read and check a profile; raises ProfileError (one line: file, key, what was expected)."""
+    path = Path(path)
+    try:
+        data = tomllib.loads(path.read_text())
+    except OSError as exc:
+        raise ProfileError(f"{path}: cannot read the profile ({exc.strerror})") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise ProfileError(f"{path}: not valid TOML ({exc})") from None
+    n = {f"{s}.{k}": _number(path, data, s, k, lo, hi) for s, k, lo, hi in NUMBERS}
+    for s, k in (("sensor", "width_px"), ("sensor", "height_px")):
+        if not float(n[f"{s}.{k}"]).is_integer():
+            raise ProfileError(f"{path}: [{s}] {k} must be a whole number of pixels, got {n[f'{s}.{k}']!r}")
+    shading = _get(path, data, "optics", "shading")
+    if shading not in SHADINGS:
+        raise ProfileError(f"{path}: [optics] shading must be one of {', '.join(SHADINGS)}, got {shading!r}")
+    bins = _number(path, data, "optics", "table_bins", 3, 201)
+    if not float(bins).is_integer() or bins % 2 == 0:
+        raise ProfileError(f"{path}: [optics] table_bins must be an odd whole number (the flat normal in the middle), got {bins!r}")
+    table = np.stack([_table(path, data, f"table_{c}", int(bins)) for c in "bgr"])
+    reference = _get(path, data, "optics", "reference_bgr")
+    if (not isinstance(reference, list) or len(reference) != 3
+            or not all(isinstance(v, (int, float)) and math.isfinite(v) and 0 < v <= 255 for v in reference)):
+        raise ProfileError(f"{path}: [optics] reference_bgr must be 3 finite numbers in (0, 255], got {reference!r}")
+    bg_name = _get(path, data, "sensor", "background")
+    bg_path = path.parent / str(bg_name)
+    background = cv2.imread(str(bg_path), cv2.IMREAD_COLOR)
+    if background is None:
+        raise ProfileError(f"{path}: [sensor] background {bg_name!r}: no readable image at {bg_path}")
+    aspect, bg_aspect = n["sensor.width_px"] / n["sensor.height_px"], background.shape[1] / background.shape[0]
+    if abs(bg_aspect / aspect - 1) > 0.02:
+        raise ProfileError(f"{path}: [sensor] background {bg_name!r} is {background.shape[1]}x{background.shape[0]}, "
+                           f"not the frame's aspect ratio {int(n['sensor.width_px'])}x{int(n['sensor.height_px'])}")
+    light = LightModel(table.astype(np.float32), float(n["optics.blur_mm"]), shading,
+                       tuple(float(v) for v in reference))
+    return SensorProfile(
+        name=str(_get(path, data, "sensor", "name")), source=str(data["sensor"].get("source", "")),
+        width_px=int(n["sensor.width_px"]), height_px=int(n["sensor.height_px"]),
+        mm_per_px=float(n["sensor.mm_per_px"]), gel_thickness_mm=float(n["gel.thickness_mm"]),
+        gel_E_MPa=float(n["gel.E_MPa"]), noise_std=float(n["sensor.noise_std"]), light=light, background=background,
+        marker_pitch_mm=float(n["markers.pitch_mm"]), marker_radius_mm=float(n["markers.radius_mm"]),
+        marker_darkness=float(n["markers.darkness"]))
+
+
+def _toml_rows(table: np.ndarray) -> str:
+    return "[\n" + "".join("  [" + ", ".join(f"{v:.3f}" for v in row) + "],\n" for row in table) + "]"
+
+
+def save_profile(profile: SensorProfile, path: str | Path) -> Path:
+    """Write ``path`` (TOML) and its background PNG beside it (same stem); returns the TOML path."""
+    path = Path(path)
+    bg_path = path.with_suffix(".png")
+    if not cv2.imwrite(str(bg_path), np.asarray(profile.background, dtype=np.uint8)):
+        raise ProfileError(f"{bg_path}: cannot write the background image")
+    light = profile.light
+    tables = "\n".join(f"table_{c} = {_toml_rows(light.table_bgr[i])}" for i, c in enumerate("bgr"))
+    text = f'''# Sensor profile (rig.sim.tactile.profile): one tactile sensor's frame, gel, optics and markers.
+[sensor]
+name = "{profile.name}"
+source = "{profile.source}"
+width_px = {profile.width_px}
+height_px = {profile.height_px}
+mm_per_px = {profile.mm_per_px!r}
+noise_std = {profile.noise_std!r}  # grey levels per pixel and channel
+background = "{bg_path.name}"  # no-contact frame, resized to the frame
+
+[gel]
+thickness_mm = {profile.gel_thickness_mm!r}
+E_MPa = {profile.gel_E_MPa!r}
+
+[markers]  # used by the rgb_markers and white_markers kinds
+pitch_mm = {profile.marker_pitch_mm!r}
+radius_mm = {profile.marker_radius_mm!r}
+darkness = {profile.marker_darkness!r}  # 1 = black markers
+
+[optics]  # colour change (grey levels) per surface normal (nx, ny) in [-1, 1]²: rows ny, columns nx
+shading = "{light.shading}"
+blur_mm = {light.blur_mm!r}
+reference_bgr = [{", ".join(f"{v!r}" for v in light.reference_bgr)}]
+table_bins = {light.bins}
+{tables}
+'''
+    path.write_text(text)
+    return path
+
+
+@functools.lru_cache(maxsize=1)
+def default_profile() -> SensorProfile:
+    """The shipped GelSight Mini profile (fitted by bench/calibrate_optics.py)."""
+    return load_profile(DEFAULT_PROFILE)
