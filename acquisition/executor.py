@@ -5,9 +5,10 @@ and captures happen on the fixed grid t = k / rate of protocol time, on the rig'
 clock, while moving: the frame count is the plan's, never what idle detection made
 of it. Each capture: trigger the camera, take the first frame at or after the
 trigger (its timestamp is the capture time), the gauge stream interpolated at that
-timestamp (the skew is recorded), the commanded and measured pose. Force limits are
-armed throughout; any error, Ctrl-C or SIGTERM stops all axes, lifts z clear,
-records why in the file and closes it.
+timestamp (the skew is recorded), the commanded and measured pose. The whole run is
+one motion session (rig/motion.py): force limits armed throughout; any exception,
+Ctrl-C, SIGTERM or SIGHUP stops all axes, lifts z clear, records why in the file and
+closes it.
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ from acquisition import schema as S
 from acquisition.run_file import RunFileError, RunHeader, RunWriter
 from protocols.plan import AXES, PHASES, Plan
 from rig.errors import DeviceError, ForceLimitExceeded, RigError, SafetyError
+from rig.motion import describe
 from rig.safety import check_speed, check_target
 
 log = logging.getLogger("acquisition")
@@ -49,6 +51,7 @@ class RunResult:
     path: Path
     skews_s: list[float] = field(default_factory=list)
     trigger_lag_s: list[float] = field(default_factory=list)
+    solver_warnings: int = 0  # simulated rig: contact solves short of tolerance during this run
 
 
 class ProtocolRefused(SafetyError):
@@ -87,7 +90,8 @@ def disk_bytes(plan: Plan, frame_shape: tuple[int, int, int]) -> int:
 
 class Acquisition:
     def __init__(self, rig, plan: Plan, *, origin: dict[str, float] | None = None,
-                 monitor_interval_s: float | None = None, progress: Callable[[Progress], None] | None = None):
+                 monitor_interval_s: float | None = None, progress: Callable[[Progress], None] | None = None,
+                 solver_warnings: Callable[[], int] | None = None):
         if rig.camera is None or rig.gauge is None:
             raise RigError("acquisition needs the camera and the force gauge open")
         self.rig = rig
@@ -98,6 +102,9 @@ class Acquisition:
         self.progress = progress
         self.protocol = plan.protocol
         self._measured: dict[str, float] = {}
+        self.m = None  # the motion session while a run is under way
+        # simulated rig: the count of contact solves short of tolerance, recorded in the file
+        self.solver_warnings = solver_warnings
 
     # -- helpers ------------------------------------------------------------------
     def _abs(self, rel: tuple[float, ...]) -> dict[str, float]:
@@ -111,12 +118,12 @@ class Acquisition:
         speed = self.protocol.approach_speed_mm_s
         z_now = self.rig.axes["z"].position()
         if z_now < self._safe_z() - 1e-6:
-            self.rig.move({"z": self._safe_z()}, speed)
+            self.m.move({"z": self._safe_z()}, speed)
         target = self._abs(pose_rel)
         lateral = {a: v for a, v in target.items() if a != "z"}
         if lateral:  # positioning, not captured: each axis at its configured jog speed
-            self.rig.move(lateral)
-        self.rig.move({"z": self._safe_z()}, speed)
+            self.m.move(lateral)
+        self.m.move({"z": self._safe_z()}, speed)
 
     def _capture_frame(self, trigger_t: float):
         cam = self.rig.camera
@@ -142,12 +149,16 @@ class Acquisition:
         plan, proto = self.plan, self.protocol
         preflight(self.rig.config, plan, self.origin)
         writer: RunWriter | None = None
+        lock = None if resume else RunWriter.claim(path)  # a second writer is refused before anything moves
         k0 = 0
+        self._t_offset_s = 0.0
         if resume:
             writer = RunWriter.reopen(path)
             if writer.header_attr(S.ATTR_PROTOCOL) != proto.text:
                 writer.close()
                 raise RunFileError(f"{path}: was recorded with a different protocol file; resume needs the same one")
+            if writer.n:  # this process's clock starts anew: keep t_frame_s increasing (docs/run-file.md)
+                self._t_offset_s = writer.last_t_frame_s + 1.0 / proto.capture_hz - self.clock.now()
             done = writer.capture_indices
             k0 = int(done[-1]) + 1 if len(done) else 0
             if k0 >= plan.frame_count:
@@ -155,61 +166,77 @@ class Acquisition:
                 writer.close()
                 return RunResult("complete", "already complete", int(len(done)), path)
         result = RunResult("running", "", writer.n if writer else 0, path)
+        warnings_before = self.solver_warnings() if self.solver_warnings is not None else 0
+        # One motion session for the whole run: any error, Ctrl-C, SIGTERM or SIGHUP stops
+        # every axis and lifts z to the approach height; _record_stop puts why into `result`.
+        motion = self.rig.motion("protocol", retract_to_z=self._safe_z(),
+                                 on_stop=lambda report: self._record_stop(result, report))
         try:
-            start_pose = plan.pose_at(plan.capture_time(k0)) if k0 else plan.steps[0].start
-            self._go_to_start((start_pose[0], start_pose[1], proto.approach_mm, start_pose[3]))
-            self.rig.tare(50)
-            reference = self._capture_frame(self.clock.now()).image
-            if writer is None:
-                from rig.sim.tactile.indenters import get_indenter
+            with motion as self.m:
+                start_pose = plan.pose_at(plan.capture_time(k0)) if k0 else plan.steps[0].start
+                self._go_to_start((start_pose[0], start_pose[1], proto.approach_mm, start_pose[3]))
+                self.rig.tare(50)
+                reference = self._capture_frame(self.clock.now()).image
+                if writer is None:
+                    from rig.sim.tactile.indenters import get_indenter
 
-                info = dict(header or {})
-                mm_per_px = float(info.get("mm_per_px", float("nan")))
-                obj = get_indenter(proto.object)
-                object_image = obj.object_image(reference.shape[1], mm_per_px if math.isfinite(mm_per_px) else 14.0 / reference.shape[1])
-                writer = RunWriter.create(path, RunHeader(
-                    protocol_name=proto.name, protocol_toml=proto.text,
-                    rig_config=info.get("rig_config", ""), object_name=proto.object,
-                    object_geometry=obj.description, sensor_kind=proto.sensor, mm_per_px=mm_per_px,
-                    capture_hz=proto.capture_hz, frames_planned=plan.frame_count,
-                    contact_origin=tuple(self.origin[a] for a in AXES), phases=PHASES,
-                ), reference.shape, object_image, reference)
-            self._main(writer, k0, result)
-            self.rig.move({"z": self._safe_z()}, proto.approach_speed_mm_s)  # retract, not captured
-            result.status, result.reason = "complete", ""
-        except ForceLimitExceeded as exc:
-            result.status, result.reason = "aborted", f"force limit: {exc}"
-            self._safe_retract(result)
-        except DeviceError as exc:
-            result.status, result.reason = "aborted", f"device error: {exc}"
-            self._safe_retract(result)
-        except KeyboardInterrupt:
-            result.status, result.reason = "interrupted", "interrupted (Ctrl-C or SIGTERM); resume with --resume"
-            self._safe_retract(result)
+                    info = dict(header or {})
+                    mm_per_px = float(info.get("mm_per_px", float("nan")))
+                    obj = get_indenter(proto.object)
+                    object_image = obj.object_image(reference.shape[1], mm_per_px if math.isfinite(mm_per_px) else 14.0 / reference.shape[1])
+                    writer = RunWriter.create(path, RunHeader(
+                        protocol_name=proto.name, protocol_toml=proto.text,
+                        rig_config=info.get("rig_config", ""), object_name=proto.object,
+                        object_geometry=obj.description, sensor_kind=proto.sensor, mm_per_px=mm_per_px,
+                        capture_hz=proto.capture_hz, frames_planned=plan.frame_count,
+                        contact_origin=tuple(self.origin[a] for a in AXES), phases=PHASES,
+                    ), reference.shape, object_image, reference, lock=lock)
+                self._main(writer, k0, result)
+                self.m.move({"z": self._safe_z()}, proto.approach_speed_mm_s)  # retract, not captured
         except RunFileError:
-            self._safe_retract(result)
             raise
+        except (RigError, KeyboardInterrupt) as exc:
+            # An abort or an interruption: stopped, lifted, and said in `result` and the file
+            # (by _record_stop, or here when the session refused to open and nothing moved).
+            if result.status == "running":
+                result.status, result.reason = describe(exc)
         finally:
+            if writer is None and lock is not None:
+                lock.release()
             if writer is not None:
                 result.frames = writer.n
                 try:
+                    if self.solver_warnings is not None:
+                        result.solver_warnings = self.solver_warnings() - warnings_before
+                        writer.set_sim_solver_warnings(result.solver_warnings)
                     writer.set_status(result.status if result.status != "running" else "aborted",
                                       result.reason or ("" if result.status == "complete" else "stopped by an error"))
                 finally:
                     writer.close()
         return result
 
-    def _safe_retract(self, result: RunResult) -> None:
-        """Stop everything and lift z clear; a failure here is recorded, not hidden."""
-        self.rig.stop_all()
-        try:
-            self.rig.move({"z": self._safe_z()}, self.protocol.approach_speed_mm_s)
-        except (RigError, KeyboardInterrupt) as exc:
-            result.reason += f"; retract failed: {exc}"
-            log.error("retract after %s failed: %s", result.status, exc)
+    def _record_stop(self, result: RunResult, report) -> None:
+        """How the motion session ended, in the words the run file keeps. Errors that are
+        not the rig's own (a driver's ValueError, an OSError) are recorded with their type
+        and still propagate: they are bugs or broken machines, not a run's outcome."""
+        exc = report.error
+        if exc is None:
+            status, reason = "complete", ""
+        elif isinstance(exc, ForceLimitExceeded):
+            status, reason = "aborted", f"force limit: {exc}"
+        elif isinstance(exc, DeviceError):
+            status, reason = "aborted", f"device error: {exc}"
+        elif isinstance(exc, KeyboardInterrupt):
+            status, reason = "interrupted", f"{report.reason}; resume with --resume"
+        else:
+            status, reason = report.status, report.reason
+        for problem in report.cleanup_errors:
+            reason += f"; {problem}"
+            log.error("after %s: %s", status, problem)
+        result.status, result.reason = status, reason
 
     def _main(self, writer: RunWriter, k0: int, result: RunResult) -> None:
-        plan, proto, rig, clock = self.plan, self.protocol, self.rig, self.clock
+        plan, proto, rig, clock, m = self.plan, self.protocol, self.rig, self.clock, self.m
         steps = plan.captured_steps
         starts, t = [], 0.0
         for step in steps:
@@ -220,11 +247,11 @@ class Acquisition:
         current, into = plan.locate(t_k0)
         i_step = steps.index(current)
         if k0 == 0:
-            rig.move(self._abs(plan.steps[0].end), {"z": plan.steps[0].speeds.get("z", proto.approach_speed_mm_s)})
+            m.move(self._abs(plan.steps[0].end), {"z": plan.steps[0].speeds.get("z", proto.approach_speed_mm_s)})
         else:  # back to where the interrupted run was, at protocol speed for the last part
             here = current.pose_at(into)
-            rig.move({"z": self.origin["z"]}, proto.approach_speed_mm_s)
-            rig.move(self._abs(here), {a: max(proto.speed_mm_s, 1e-3) if a != "theta" else proto.twist_speed_deg_s
+            m.move({"z": self.origin["z"]}, proto.approach_speed_mm_s)
+            m.move(self._abs(here), {a: max(proto.speed_mm_s, 1e-3) if a != "theta" else proto.twist_speed_deg_s
                                         for a in self._abs(here)})
         t0 = clock.now() - t_k0  # rig-clock time of protocol time 0
         guard = rig.guard
@@ -235,7 +262,7 @@ class Acquisition:
             step = steps[i]
             targets = {a: v for a, v in self._abs(step.end).items() if a in step.speeds}
             if targets:
-                guard = rig.start_move(targets, {a: step.speeds[a] for a in targets})
+                guard = m.start_move(targets, {a: step.speeds[a] for a in targets})
                 moving |= set(targets)
 
         start_step(i_step)
@@ -255,14 +282,13 @@ class Acquisition:
                 next_step += 1
             if now >= next_monitor - 1e-9:
                 # With nothing moving this is the plain force check under the rig's own limits.
-                moving = rig.monitor(moving, guard if moving else rig.guard, "protocol")
+                moving = m.monitor(moving, guard if moving else rig.guard, "protocol")
                 next_monitor = now + self.monitor_interval_s
             if now >= t_capture - 1e-9:
                 self._capture(writer, k, t_capture, moving, result)
                 k += 1
-        while moving:  # let the last step finish under the guard
-            moving = rig.monitor(moving, guard, "protocol")
-            clock.sleep(self.monitor_interval_s)
+        # The last step finishes under its guard, and the wrench after it has to pass too.
+        m.settle(moving, guard)
 
     def _capture(self, writer: RunWriter, k: int, t_trigger: float, moving: set[str], result: RunResult) -> None:
         t_prot = self.plan.capture_time(k)
@@ -273,7 +299,7 @@ class Acquisition:
             S.WRENCH: wrench,
             S.POSE_COMMANDED: np.asarray(self.plan.pose_at(t_prot)),
             S.POSE_MEASURED: np.asarray(self._measured_pose(moving)),
-            S.T_FRAME: frame.t_s,
+            S.T_FRAME: frame.t_s + self._t_offset_s,
             S.T_CAPTURE: t_prot,
             S.WRENCH_SKEW: skew,
             S.CAPTURE_INDEX: k,

@@ -1,16 +1,28 @@
-"""Append-only, crash-safe HDF5 run files.
+"""Append-only, crash-safe HDF5 run files that cannot lie about what they hold.
 
-Written in SWMR mode and flushed after every frame, so ``dataset info`` can read a
-run while it grows and a ``kill -9`` loses at most the frame being written. After a
-crash the file keeps HDF5's "open for writing" flag: readers open it with
+* Written in SWMR mode and flushed after every frame, so ``dataset info`` can read a
+  run while it grows and a ``kill -9`` loses at most the frame being written.
+* A frame counts only once its row and its frame are flushed; a write that fails
+  (disk full) is rolled back to the last counted frame, recorded as the reason, and
+  raised as RunFileError, so no partial or all-zero frame is ever committed.
+* Frames and rows carry Fletcher-32 checksums per chunk: corruption fails on read.
+* Created under a temporary name and renamed into place once the header, reference
+  frame and object image are on disk: a crash leaves nothing at ``--out``.
+* One writer at a time: ``writer_lock.WriterLock`` (a second run, ``--resume``).
+
+After a crash the file keeps HDF5's "open for writing" flag: readers open it with
 ``swmr=True`` (``open_for_reading`` does), and ``recover`` copies it into a clean
-file so that ``--resume`` can append again.
+file so that ``--resume`` can append again. docs/run-file.md has the details.
 """
 
 from __future__ import annotations
 
 import datetime as dt
+import errno
+import logging
 import os
+import re
+import resource
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -18,12 +30,14 @@ import h5py
 import numpy as np
 
 from acquisition import schema as S
+from acquisition.hdf5_open import check_complete, open_swmr_read
+from acquisition.run_layout import layout_problems
+from acquisition.writer_lock import RunFileError, RunLocked, WriterLock, live_writer
 from rig import __version__
-from rig.errors import RigError
 
+__all__ = ["RunFileError", "RunHeader", "RunLocked", "RunWriter", "open_for_reading", "recover", "PER_FRAME"]
 
-class RunFileError(RigError):
-    """A run file is missing, not HDF5, or not what was expected; names the file."""
+log = logging.getLogger("acquisition")
 
 
 @dataclass(frozen=True)
@@ -41,98 +55,222 @@ class RunHeader:
     phases: tuple[str, ...]
 
 
-PER_FRAME = (
-    (S.WRENCH, (6,), "f8", "N, N, N, N·mm, N·mm, N·mm"),
-    (S.POSE_COMMANDED, (4,), "f8", "mm, mm, mm, deg"),
-    (S.POSE_MEASURED, (4,), "f8", "mm, mm, mm, deg"),
-    (S.T_FRAME, (), "f8", "s (rig clock)"),
-    (S.T_CAPTURE, (), "f8", "s (protocol time)"),
-    (S.WRENCH_SKEW, (), "f8", "s"),
-    (S.CAPTURE_INDEX, (), "i8", ""),
-    (S.STEP_INDEX, (), "i4", ""),
-    (S.PHASE_INDEX, (), "i1", ""),
-    (S.LEVEL, (), "i1", ""),
-)
-
+# (name, shape per frame, dtype, units), from the schema's field table
+PER_FRAME = tuple((f.path, f.shape, f.dtype, f.units) for f in S.PER_FRAME_FIELDS)
 
 ROW_BLOCK = 256  # per-row datasets grow in blocks; the frame count says how many rows are valid
+TEMP_MARKS = (".creating-", ".recovering-")  # RUN.h5.creating-PID, RUN.h5.recovering-PID
+SPACE_MARGIN_BYTES = 1 << 20  # metadata a flush may add beside the frame itself
+
+
+def chunked(chunks: tuple[int, ...]) -> dict:
+    """Creation keywords of every growing dataset: the one place for its filters.
+
+    Fletcher-32 stores a checksum per chunk, checked on every read. One frame per
+    chunk keeps a damaged chunk to one frame (and a later compression filter goes here).
+    """
+    return {"chunks": chunks, "fletcher32": True}
+
+
+def temp_path(path: Path, mark: str) -> Path:
+    return path.with_name(f"{path.name}{mark}{os.getpid()}")
+
+
+def remove_stale_temps(path: Path) -> list[Path]:
+    """Temp files a crashed writer of ``path`` left; call only while holding its lock."""
+    stale = [p for p in path.parent.glob(f"{glob_escape(path.name)}.*-*")
+             if any(p.name.startswith(path.name + mark) for mark in TEMP_MARKS)]
+    for p in stale:
+        p.unlink(missing_ok=True)
+    return stale
+
+
+def glob_escape(name: str) -> str:
+    return re.sub(r"([*?\[])", r"[\1]", name)
+
+
+def _fsync(path: Path) -> None:
+    fd = os.open(path, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
+def _first_line(exc: BaseException) -> str:
+    return str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+
+
+def _errno_of(exc: BaseException) -> int | None:
+    """OSError's errno, or the one h5py's RuntimeError quotes ("errno = 28, ...")."""
+    if isinstance(exc, OSError) and exc.errno:
+        return exc.errno
+    found = re.search(r"errno = (\d+)", str(exc))
+    return int(found.group(1)) if found else None
+
+
+def _write_header(f: h5py.File, header: RunHeader, frame_shape, object_image, reference_frame) -> None:
+    a = f.attrs
+    a[S.ATTR_SCHEMA] = S.SCHEMA_VERSION
+    a[S.ATTR_SOFTWARE] = __version__
+    a[S.ATTR_CREATED] = dt.datetime.now(dt.timezone.utc).isoformat(timespec="seconds")
+    a[S.ATTR_PROTOCOL_NAME] = header.protocol_name
+    a[S.ATTR_PROTOCOL] = header.protocol_toml
+    a[S.ATTR_RIG_CONFIG] = header.rig_config
+    a[S.ATTR_OBJECT] = header.object_name
+    a[S.ATTR_OBJECT_GEOMETRY] = header.object_geometry
+    a[S.ATTR_SENSOR_KIND] = header.sensor_kind
+    a[S.ATTR_MM_PER_PX] = header.mm_per_px
+    a[S.ATTR_CAPTURE_HZ] = header.capture_hz
+    a[S.ATTR_FRAMES_PLANNED] = header.frames_planned
+    a[S.ATTR_CONTACT_ORIGIN] = np.asarray(header.contact_origin, dtype=float)
+    a[S.ATTR_PHASES] = list(header.phases)
+    h, w, c = frame_shape
+    frames = f.create_dataset(S.FRAMES, (0, h, w, c), maxshape=(None, h, w, c), dtype="u1", **chunked((1, h, w, c)))
+    frames.attrs["units"] = S.FRAMES_FIELD.units
+    for name, shape, dtype, units in PER_FRAME:
+        d = f.create_dataset(name, (0, *shape), maxshape=(None, *shape), dtype=dtype, **chunked((ROW_BLOCK, *shape)))
+        d.attrs["units"] = units
+    f.create_dataset(S.OBJECT_IMAGE, data=object_image.astype(np.uint8))
+    f.create_dataset(S.REFERENCE_FRAME, data=reference_frame.astype(np.uint8))
+    f.create_dataset(S.STATUS, data=np.bytes_("running"), dtype=f"S{S.STATUS_LEN}")
+    f.create_dataset(S.STATUS_REASON, data=np.bytes_(""), dtype=f"S{S.REASON_LEN}")
+    f.create_dataset(S.SIM_SOLVER_WARNINGS, data=np.int64(-1))  # datasets cannot be added once in SWMR mode
 
 
 class RunWriter:
-    def __init__(self, f: h5py.File, path: Path):
+    def __init__(self, f: h5py.File, path: Path, lock: WriterLock):
         self.f = f
         self.path = path
+        self.lock = lock
         self.n = f[S.FRAMES].shape[0]
         self._frames = f[S.FRAMES]
         self._rows = {name: f[name] for name, *_ in PER_FRAME}
         self._rows_len = min(d.shape[0] for d in self._rows.values())
+        self._failure = ""  # set when a write failed: the file is closed with it as its reason
+
+    @classmethod
+    def claim(cls, path: str | Path) -> WriterLock:
+        """The writer lock of a new run at ``path``, taken before anything moves; pass it to
+        ``create``. RunLocked names another live writer; RunFileError if ``path`` exists."""
+        path = Path(path)
+        lock = WriterLock.acquire(path)
+        if path.exists():
+            lock.release()
+            raise RunFileError(f"{path}: exists; choose another --out, or --resume it")
+        return lock
 
     @classmethod
     def create(cls, path: str | Path, header: RunHeader, frame_shape: tuple[int, int, int],
-               object_image: np.ndarray, reference_frame: np.ndarray) -> "RunWriter":
+               object_image: np.ndarray, reference_frame: np.ndarray, *, lock: WriterLock | None = None) -> "RunWriter":
+        """A new run file at ``path``, which must not exist. Takes the writer lock (or uses
+        ``lock``, already taken); RunLocked names another live writer, RunFileError the rest."""
         path = Path(path)
-        if path.exists():
-            raise RunFileError(f"{path}: exists; choose another --out, or --resume it")
-        f = h5py.File(path, "w", libver="latest")
+        lock = lock or WriterLock.acquire(path)
         try:
-            a = f.attrs
-            a[S.ATTR_SCHEMA] = S.SCHEMA_VERSION
-            a[S.ATTR_SOFTWARE] = __version__
-            a[S.ATTR_CREATED] = dt.datetime.now(dt.timezone.utc).isoformat(timespec="seconds")
-            a[S.ATTR_PROTOCOL_NAME] = header.protocol_name
-            a[S.ATTR_PROTOCOL] = header.protocol_toml
-            a[S.ATTR_RIG_CONFIG] = header.rig_config
-            a[S.ATTR_OBJECT] = header.object_name
-            a[S.ATTR_OBJECT_GEOMETRY] = header.object_geometry
-            a[S.ATTR_SENSOR_KIND] = header.sensor_kind
-            a[S.ATTR_MM_PER_PX] = header.mm_per_px
-            a[S.ATTR_CAPTURE_HZ] = header.capture_hz
-            a[S.ATTR_FRAMES_PLANNED] = header.frames_planned
-            a[S.ATTR_CONTACT_ORIGIN] = np.asarray(header.contact_origin, dtype=float)
-            a[S.ATTR_PHASES] = list(header.phases)
-            h, w, c = frame_shape
-            frames = f.create_dataset(S.FRAMES, (0, h, w, c), maxshape=(None, h, w, c), chunks=(1, h, w, c),
-                                      dtype="u1")
-            frames.attrs["units"] = "BGR, 0-255"
-            for name, shape, dtype, units in PER_FRAME:
-                d = f.create_dataset(name, (0, *shape), maxshape=(None, *shape), chunks=(256, *shape), dtype=dtype)
-                d.attrs["units"] = units
-            f.create_dataset(S.OBJECT_IMAGE, data=object_image.astype(np.uint8))
-            f.create_dataset(S.REFERENCE_FRAME, data=reference_frame.astype(np.uint8))
-            f.create_dataset(S.STATUS, data=np.bytes_("running"), dtype=f"S{S.STATUS_LEN}")
-            f.create_dataset(S.STATUS_REASON, data=np.bytes_(""), dtype=f"S{S.REASON_LEN}")
+            if path.exists():
+                raise RunFileError(f"{path}: exists; choose another --out, or --resume it")
+            remove_stale_temps(path)
+            tmp = temp_path(path, ".creating-")
+            try:
+                with h5py.File(tmp, "w", libver="latest") as f:
+                    _write_header(f, header, frame_shape, object_image, reference_frame)
+                _fsync(tmp)
+                os.replace(tmp, path)  # only a complete header ever appears at the run's name
+            except (OSError, RuntimeError) as exc:
+                raise RunFileError(f"{path}: cannot create the run file ({_first_line(exc)})") from None
+            finally:
+                tmp.unlink(missing_ok=True)
+            f = h5py.File(path, "r+", libver="latest")
             f.swmr_mode = True
-            f.flush()
+            return cls(f, path, lock)
         except BaseException:
-            f.close()
+            lock.release()
             raise
-        return cls(f, path)
 
     @classmethod
     def reopen(cls, path: str | Path) -> "RunWriter":
-        """Open a run to append to it, recovering it first if its writer crashed."""
-        path = Path(path)
-        if not path.exists():
-            raise RunFileError(f"{path}: no such run file to resume")
-        try:
-            f = h5py.File(path, "r+", libver="latest")
-        except OSError as exc:
-            if "consistency flag" not in str(exc) and "already open for write" not in str(exc):
-                raise RunFileError(f"{path}: cannot open for appending: {exc}") from exc
-            recover(path)
-            f = h5py.File(path, "r+", libver="latest")
-        f.swmr_mode = True
-        writer = cls(f, path)
-        writer._truncate_to_consistent()
-        return writer
+        """Open a run to append to it, recovering it first if its writer crashed.
 
-    def _truncate_to_consistent(self) -> None:
-        """Valid rows are those with a frame; trim the block-extended rows to match."""
+        Raises RunLocked while another process writes it, RunFileError naming the file and
+        the dataset when it is not a complete, well-formed run file.
+        """
+        path = Path(path)
+        lock = WriterLock.acquire(path)
+        try:
+            stale = remove_stale_temps(path)
+            if not path.exists():
+                detail = f" (a crash interrupted its creation; removed {', '.join(p.name for p in stale)})" if stale else ""
+                raise RunFileError(f"{path}: no such run file to resume{detail}; start a new run")
+            problem = check_complete(path)
+            if problem:
+                raise RunFileError(f"{path}: {problem}; cannot resume it")
+            f = cls._open_for_append(path)
+            problems = layout_problems(f)
+            if problems:
+                f.close()
+                raise RunFileError(f"{path}: cannot resume: {'; '.join(problems)}")
+            f.swmr_mode = True
+            writer = cls(f, path, lock)
+            try:
+                writer._drop_unfinished_frames()
+            except BaseException:
+                f.close()
+                raise
+            return writer
+        except BaseException:
+            lock.release()
+            raise
+
+    @staticmethod
+    def _open_for_append(path: Path) -> h5py.File:
+        try:
+            return h5py.File(path, "r+", libver="latest")
+        except OSError as exc:
+            first = exc
+        try:  # a crashed SWMR writer leaves a flag that only a copy clears; it must still read
+            open_swmr_read(path).close()
+        except (OSError, RuntimeError, KeyError) as exc:
+            raise RunFileError(f"{path}: cannot open for appending: {_first_line(exc)}") from None
+        log.info("%s: recovering after a crash (%s)", path, _first_line(first))
+        try:
+            recover(path)
+            return h5py.File(path, "r+", libver="latest")
+        except (OSError, RuntimeError, KeyError) as exc:
+            raise RunFileError(f"{path}: cannot recover it for appending: {_first_line(exc)}") from None
+
+    def _drop_unfinished_frames(self) -> None:
+        """Keep the frames whose row and frame both reached the disk.
+
+        A crash between a frame's resize and its flush can leave a frame whose chunk was
+        never written (it would read as fill zeros) or was cut short (its checksum fails).
+        """
         n = min([self._frames.shape[0]] + [d.shape[0] for d in self._rows.values()])
+        for name, d in self._rows.items():
+            try:
+                d[:n]
+            except (OSError, RuntimeError) as exc:
+                raise RunFileError(f"{self.path}: {name}: unreadable ({_first_line(exc)}); the file is damaged, "
+                                   "cannot resume it") from None
+        while n > 0 and not self._frame_on_disk(n - 1):
+            log.warning("%s: frame %d never reached the disk; dropped", self.path, n - 1)
+            n -= 1
+        self.n = n
+        self._truncate_to(n)
+
+    def _frame_on_disk(self, i: int) -> bool:
+        if self._frames.id.get_chunk_info_by_coord((i, 0, 0, 0)).byte_offset is None:
+            return False
+        try:
+            self._frames[i]
+        except (OSError, RuntimeError):
+            return False
+        return True
+
+    def _truncate_to(self, n: int) -> None:
         for d in [self._frames, *self._rows.values()]:
             if d.shape[0] != n:
                 d.resize(n, axis=0)
-        self.n = n
         self._rows_len = n
         self.f.flush()
 
@@ -140,57 +278,158 @@ class RunWriter:
     def capture_indices(self) -> np.ndarray:
         return self._rows[S.CAPTURE_INDEX][: self.n]
 
+    @property
+    def last_t_frame_s(self) -> float | None:
+        """The newest frame's t_frame_s: the next one must be later (see docs/run-file.md)."""
+        return float(self._rows[S.T_FRAME][self.n - 1]) if self.n else None
+
     def header_attr(self, name: str):
         return self.f.attrs[name]
 
     def append(self, frame: np.ndarray, **row) -> None:
-        """One capture: the frame and its row (keys: the per-frame dataset names)."""
+        """One capture: the frame and its row (keys: the per-frame dataset names).
+
+        Counted only after both are flushed. RunFileError when the disk is full or a write
+        fails: nothing of this frame stays in the file, and every earlier frame does.
+        """
+        if self._failure:
+            raise RunFileError(f"{self.path}: {self._failure}")
         i = self.n
         frames = self._frames
         if frame.shape != frames.shape[1:]:
             raise RunFileError(f"{self.path}: frame shape {frame.shape} differs from the run's {frames.shape[1:]}")
-        # Rows first (their datasets grow a block at a time), the frame last: the
-        # frame count is the number of valid rows, so a crash in between leaves a row
-        # without a frame (trimmed on resume), never a frame without its wrench and pose.
-        if self._rows_len <= i:
-            for d in self._rows.values():
-                d.resize(i + ROW_BLOCK, axis=0)
-            self._rows_len = i + ROW_BLOCK
-        for name, d in self._rows.items():
-            d[i] = row[name]
-        frames.resize(i + 1, axis=0)
-        frames[i] = frame
-        self.f.flush()
+        missing = [name for name in self._rows if name not in row]
+        if missing:
+            raise RunFileError(f"{self.path}: frame {i} has no {', '.join(missing)}")
+        self._check_space(i, frame.nbytes)
+        try:
+            # Rows first (their datasets grow a block at a time), the frame last: the
+            # frame count is the number of valid rows, so a crash in between leaves a
+            # row without a frame (trimmed on resume), never a frame without its row.
+            if self._rows_len <= i:
+                for d in self._rows.values():
+                    d.resize(i + ROW_BLOCK, axis=0)
+                self._rows_len = i + ROW_BLOCK
+            for name, d in self._rows.items():
+                d[i] = row[name]
+            frames.resize(i + 1, axis=0)
+            frames[i] = frame
+            self.f.flush()
+        except (OSError, RuntimeError) as exc:  # h5py reports a failed flush as RuntimeError
+            raise self._fail(i, exc) from None
         self.n = i + 1
 
+    def _check_space(self, i: int, frame_bytes: int) -> None:
+        """Stop before a write that cannot fit, so the common disk-full case never reaches HDF5.
+
+        A write HDF5 starts and the disk refuses is rolled back (``_fail``), except when
+        the file may not grow at all (a file-size limit, EFBIG): HDF5 then cannot extend
+        the file to the space it allocated, no flush succeeds again, and the library
+        crashed at exit (rc 139). Both limits are checked here first.
+        """
+        need = frame_bytes + SPACE_MARGIN_BYTES
+        try:
+            st = os.statvfs(self.path.parent)
+            size = self.path.stat().st_size
+        except OSError:
+            return
+        free = st.f_bavail * st.f_frsize
+        if free < need:
+            raise self._fail(i, OSError(errno.ENOSPC, f"{free:,} bytes free in {self.path.parent}"))
+        limit, _ = resource.getrlimit(resource.RLIMIT_FSIZE)
+        if limit != resource.RLIM_INFINITY and size + need > limit:
+            raise self._fail(i, OSError(errno.EFBIG, f"this process may write files up to {limit:,} bytes (ulimit -f)"))
+
+    def _fail(self, i: int, exc: BaseException) -> RunFileError:
+        """Roll the file back to its ``i`` counted frames and record why; the error to raise.
+
+        HDF5 keeps a frame that failed to reach the disk in its chunk cache and retries it
+        at every flush, and at interpreter exit, where the retry crashed the process
+        (rc 139): shrinking the datasets to the counted frames discards it.
+        """
+        code = _errno_of(exc)
+        what = {errno.ENOSPC: "disk full", errno.EDQUOT: "disk quota exceeded",
+                errno.EFBIG: "file too large (filesystem or process file-size limit)"}.get(code, "write failed")
+        detail = os.strerror(code) if code else _first_line(exc)
+        if isinstance(exc, OSError) and exc.strerror and exc.strerror != detail:
+            detail = f"{detail}: {exc.strerror}"
+        kept = f"frames 0-{i - 1} are kept" if i else "no frame was written"
+        self._failure = f"{what}: frame {i} could not be written ({detail}); {kept}"
+        try:
+            self._truncate_to(i)
+            self.f[S.STATUS][()] = np.bytes_("aborted")
+            self.f[S.STATUS_REASON][()] = np.bytes_(self._failure.encode("utf-8")[: S.REASON_LEN])
+            self.f.flush()
+        except (OSError, RuntimeError) as again:
+            log.error("%s: after %s, rolling back also failed: %s", self.path, what, _first_line(again))
+        return RunFileError(f"{self.path}: {self._failure}")
+
     def set_status(self, status: str, reason: str = "") -> None:
-        self.f[S.STATUS][()] = np.bytes_(status[: S.STATUS_LEN])
-        self.f[S.STATUS_REASON][()] = np.bytes_(reason.encode("utf-8")[: S.REASON_LEN])
-        self.f.flush()
+        """Record how the run ended. After a failed write the failure stays the reason."""
+        if self._failure:
+            status = "aborted"
+            reason = self._failure if not reason or reason in self._failure else f"{self._failure}; {reason}"
+        try:
+            self.f[S.STATUS][()] = np.bytes_(status[: S.STATUS_LEN])
+            self.f[S.STATUS_REASON][()] = np.bytes_(reason.encode("utf-8")[: S.REASON_LEN])
+            self.f.flush()
+        except (OSError, RuntimeError) as exc:
+            raise RunFileError(f"{self.path}: cannot record status {status!r} ({_first_line(exc)})") from None
+
+    def set_sim_solver_warnings(self, count: int) -> None:
+        """A simulated run: how many contact solves stopped short of their tolerance (0: none)."""
+        if S.SIM_SOLVER_WARNINGS in self.f:  # files created before the field have no place for it
+            self.f[S.SIM_SOLVER_WARNINGS][()] = np.int64(count)
+            self.f.flush()
 
     def close(self) -> None:
-        if self.f.id.valid:
-            self._truncate_to_consistent()
-            self.f.close()
+        """Trim to the counted frames, close, release the lock; RunFileError if closing failed."""
+        try:
+            if self.f.id.valid:
+                try:
+                    self._truncate_to(self.n)
+                    self.f.close()
+                except (OSError, RuntimeError) as exc:
+                    raise RunFileError(f"{self.path}: closing failed ({_first_line(exc)}); "
+                                       f"its {self.n} flushed frames are kept") from None
+        finally:
+            self.lock.release()
 
 
 def recover(path: Path) -> None:
-    """Copy a crashed run (readable in SWMR mode) into a clean file that replaces it."""
-    tmp = path.with_suffix(path.suffix + ".recovering")
-    with h5py.File(path, "r", swmr=True) as src, h5py.File(tmp, "w", libver="latest") as dst:
-        for key, value in src.attrs.items():
-            dst.attrs[key] = value
-        for key in src:
-            src.copy(src[key], dst, name=key)
-    os.replace(tmp, path)
+    """Copy a crashed run (readable in SWMR mode) into a clean file that replaces it.
+
+    Call only while holding the run's writer lock.
+    """
+    tmp = temp_path(path, ".recovering-")
+    try:
+        with open_swmr_read(path) as src, h5py.File(tmp, "w", libver="latest") as dst:
+            for key, value in src.attrs.items():
+                dst.attrs[key] = value
+            for key in src:
+                src.copy(src[key], dst, name=key)
+        _fsync(tmp)
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
 
 
 def open_for_reading(path: str | Path) -> h5py.File:
-    """A run file for reading, also while it is being written or after its writer crashed."""
+    """A run file for reading, also while it is being written or after its writer crashed.
+
+    Fails within a second, naming the file, when the file is cut short or damaged.
+    """
     path = Path(path)
     if not path.exists():
         raise RunFileError(f"{path}: no such file")
     try:
-        return h5py.File(path, "r", swmr=True)
+        problem = check_complete(path)
     except OSError as exc:
-        raise RunFileError(f"{path}: not a readable HDF5 run file ({exc})") from exc
+        raise RunFileError(f"{path}: cannot be read ({exc.strerror})") from None
+    # A live writer may be between growing the file and writing its new end.
+    if problem and not (problem.startswith("truncated:") and live_writer(path)):
+        raise RunFileError(f"{path}: {problem}")
+    try:
+        return open_swmr_read(path)
+    except (OSError, RuntimeError, KeyError) as exc:
+        raise RunFileError(f"{path}: not a readable HDF5 run file ({_first_line(exc)})") from None

@@ -11,6 +11,8 @@ from typing import Annotated, Optional
 
 import typer
 
+from rig.cli.options import number
+
 app = typer.Typer(help="Run files (HDF5) → validated, split training data with contact conditions.",
                   no_args_is_help=True, add_completion=False)
 
@@ -51,18 +53,24 @@ def info(paths: Paths):
 @friendly
 def validate(
     paths: Paths,
-    max_skew_s: Annotated[float, typer.Option(help="Largest acceptable wrench–frame skew, s.", min=0.0)] = 0.1,
+    max_skew_s: Annotated[float, typer.Option(help="Largest acceptable wrench–frame skew, s.",
+                                              callback=number(low=0.0, high=3600.0))] = 0.1,
+    sample: Annotated[Optional[int], typer.Option(help="Check only this many evenly spaced frames (faster); "
+                                                       "default: every frame.", min=1)] = None,
 ):
-    """Check schema, shapes, units, NaN/inf, timestamp order, black or saturated frames, skew; exit 1 on findings."""
-    from dataset.runs import validate as check
+    """Check every dataset and attribute of the schema, every checksum, every frame (black, constant, saturated),
+    NaN/inf, time order, capture indices, status and reason, skew; one line per finding; exit 1 on findings."""
+    from dataset.runs import check_run
 
     bad = 0
     for path in paths:
-        findings = check(path, max_skew_s=max_skew_s)
-        typer.echo(f"{path}: {'ok' if not findings else f'{len(findings)} finding(s)'}")
-        for item in findings:
-            typer.echo(f"  - {item}")
-        bad += bool(findings)
+        result = check_run(path, max_skew_s=max_skew_s, sample_frames=sample)
+        typer.echo(f"{path}: {'ok' if not result.findings else f'{len(result.findings)} finding(s)'}")
+        for item in result.findings:
+            typer.echo(f"  {path}: {item}")
+        for item in result.notes:
+            typer.echo(f"  {path}: note: {item}")
+        bad += bool(result.findings)
     if bad:
         raise typer.Exit(1)
 
@@ -73,7 +81,7 @@ def split(
     ratio: Annotated[str, typer.Argument(help="Parts as train:test (8:2) or train:val:test (7:1:2).")],
     paths: Paths,
     out: Annotated[Path, typer.Option(help="Directory for split.json and one NAME.npy index file per part.")],
-    seed: Annotated[int, typer.Option(help="Random seed: the same seed gives the same split.")] = 0,
+    seed: Annotated[int, typer.Option(help="Random seed: the same seed gives the same split.", min=0)] = 0,
     by: Annotated[str, typer.Option(help="frame (the paper's way), run or object (a test object never seen in "
                                          "training).")] = "frame",
     allow_incomplete: Annotated[bool, typer.Option(help="Use aborted or interrupted runs too (with a warning).")] = False,
@@ -106,12 +114,19 @@ def export(path: Annotated[Path, typer.Argument(help="A run file.")],
     typer.echo(f"{out}: {export_run(path, out)} frames")
 
 
+def _mm_per_px(ctx: typer.Context, param: typer.CallbackParam, value: Optional[float]):
+    """--mm-per-px: finite and in the import's calibration range, the option named (rig/cli/options.py)."""
+    from dataset.interchange import MM_PER_PX
+
+    return number(low=MM_PER_PX[0], high=MM_PER_PX[1])(ctx, param, value)
+
+
 @app.command("import")
 @friendly
 def import_(folder: Annotated[Path, typer.Argument(help="A folder in the export format (docs/dataset.md).")],
             out: Annotated[Path, typer.Option(help="The run file to write; must not exist.")],
-            mm_per_px: Annotated[Optional[float], typer.Option(help="Frame calibration, mm per pixel (default: run.json's).",
-                                                               min=1e-5)] = None,
+            mm_per_px: Annotated[Optional[float], typer.Option(help="Frame calibration, mm per pixel (default: run.json's); "
+                                                                    "0.0001 to 10.", callback=_mm_per_px)] = None,
             object_name: Annotated[Optional[str], typer.Option("--object", help="Object name (default: run.json's).")] = None):
     """Import tactile PNGs, a CSV of wrenches and poses and an object image from another rig."""
     from dataset.interchange import import_run

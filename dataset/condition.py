@@ -24,5 +24,23 @@ def place_object(object_image: np.ndarray, x_mm: float, y_mm: float, theta_deg: 
     return placed
 
 
+def condition_image(object_image: np.ndarray, x_mm: float, y_mm: float, theta_deg: float, mm_per_px: float,
+                    frame_px: int, size: int) -> np.ndarray:
+    """The condition image of the model: the object at the pose, (size, size, 3) uint8.
+
+    ``object_image`` spans the sensor's field of view, ``frame_px`` × ``mm_per_px`` mm
+    (``mm_per_px`` is the tactile frame's scale at ``frame_px`` pixels across); it is
+    brought to ``frame_px`` first, so that training (object images stored at the frame's
+    size) and generation (an object image of any size) place the object identically.
+    """
+    if object_image.shape[0] != object_image.shape[1]:
+        raise ValueError(f"object image is {object_image.shape[1]}x{object_image.shape[0]} px; expected a square image "
+                         "of the sensor's field of view")
+    if object_image.shape[0] != frame_px:
+        object_image = cv2.resize(object_image, (frame_px, frame_px), interpolation=cv2.INTER_AREA
+                                  if object_image.shape[0] > frame_px else cv2.INTER_LINEAR)
+    return place_object(object_image, x_mm, y_mm, theta_deg, mm_per_px, size=size)
+
+
 def normalise_wrench(wrench: np.ndarray, mean: np.ndarray, std: np.ndarray) -> np.ndarray:
     return (np.asarray(wrench, dtype=np.float64) - mean) / std

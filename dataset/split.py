@@ -16,7 +16,8 @@ import numpy as np
 
 from acquisition import schema as S
 from dataset.runs import open_run, summarize
-from rig.errors import RigError
+from rig.config import finite_number
+from rig.errors import ConfigError, RigError
 
 MANIFEST = "split.json"
 PART_NAMES = {2: ("train", "test"), 3: ("train", "val", "test")}
@@ -27,23 +28,41 @@ class SplitError(RigError):
 
 
 def parse_ratios(text: str) -> tuple[float, ...]:
-    """'8:2' → (0.8, 0.2); '7:1:2' → (0.7, 0.1, 0.2)."""
-    try:
-        parts = [float(p) for p in text.split(":")]
-    except ValueError:
-        raise SplitError(f"split ratio {text!r}: expected numbers joined by ':' such as 8:2 or 7:1:2") from None
-    if len(parts) not in PART_NAMES or any(p < 0 for p in parts) or sum(parts) <= 0:
-        raise SplitError(f"split ratio {text!r}: expected two or three non-negative parts (train:test or train:val:test)")
+    """'8:2' → (0.8, 0.2); '7:1:2' → (0.7, 0.1, 0.2). Every part a finite number > 0
+    (a zero part is an empty split); SplitError names the ratio and the part."""
+    pieces = text.split(":")
+    if len(pieces) not in PART_NAMES:
+        raise SplitError(f"split ratio {text!r}: expected two or three parts (train:test or train:val:test) "
+                         "such as 8:2 or 7:1:2")
+    parts = []
+    for name, piece in zip(PART_NAMES[len(pieces)], pieces):
+        try:
+            value = float(piece)
+        except ValueError:
+            raise SplitError(f"split ratio {text!r}: the {name} part {piece!r} is not a number; expected numbers "
+                             "joined by ':' such as 8:2 or 7:1:2") from None
+        try:
+            parts.append(finite_number(f"split ratio {text!r}", name, value, positive=True))
+        except ConfigError as exc:
+            raise SplitError(str(exc)) from None
+    largest = max(parts)  # scaled first: 1e308:1e308 must not sum to inf
+    parts = [p / largest for p in parts]
     total = sum(parts)
     return tuple(p / total for p in parts)
 
 
-def _allocate(n: int, ratios: tuple[float, ...]) -> list[int]:
-    """Sizes summing to n, closest to the ratios (largest remainders)."""
+def _allocate(n: int, ratios: tuple[float, ...], what: str = "frame") -> list[int]:
+    """Sizes summing to n, closest to the ratios (largest remainders), every part at least 1."""
+    if n < len(ratios):
+        raise SplitError(f"{n} {what}(s) cannot fill {len(ratios)} parts (each needs at least one {what}); "
+                         + ("collect more frames" if what == "frame" else "add runs or split by frame"))
     exact = [r * n for r in ratios]
     sizes = [int(x) for x in exact]
     for i in sorted(range(len(ratios)), key=lambda i: exact[i] - sizes[i], reverse=True)[: n - sum(sizes)]:
         sizes[i] += 1
+    sizes = [max(1, size) for size in sizes]  # a tiny part still gets one, taken from the largest
+    while sum(sizes) > n:
+        sizes[sizes.index(max(sizes))] -= 1
     return sizes
 
 
@@ -77,20 +96,16 @@ def make_split(paths: list[str | Path], ratios_text: str, out: str | Path, *, se
                            for i, s in enumerate(summaries)]).astype(np.int32)
     rng = np.random.default_rng(seed)
     if by == "frame":
+        sizes = _allocate(len(rows), ratios)
         order = rng.permutation(len(rows))
-        cuts = np.cumsum(_allocate(len(rows), ratios))[:-1]
+        cuts = np.cumsum(sizes)[:-1]
         chosen = (rows[idx] for idx in np.split(order, cuts))
         parts = {name: part[np.lexsort((part[:, 1], part[:, 0]))] for name, part in zip(names, chosen)}
     else:
         keys = [s.path if by == "run" else s.object_name for s in summaries]
         groups = sorted(set(keys))
-        if len(groups) < len(ratios):
-            raise SplitError(f"--by {by}: {len(groups)} {by}(s) cannot fill {len(ratios)} parts; add runs or split by frame")
+        sizes = _allocate(len(groups), ratios, what=by)
         order = [groups[i] for i in rng.permutation(len(groups))]
-        sizes = _allocate(len(groups), ratios)
-        sizes = [max(1, s) for s in sizes]
-        while sum(sizes) > len(groups):
-            sizes[int(np.argmax(sizes))] -= 1
         assignment, start = {}, 0
         for name, size in zip(names, sizes):
             for g in order[start:start + size]:

@@ -17,7 +17,7 @@ import torch
 from torch.utils.data import Dataset
 
 from acquisition import schema as S
-from dataset.condition import normalise_wrench, place_object
+from dataset.condition import condition_image, normalise_wrench
 from dataset.split import load_split
 
 
@@ -100,9 +100,10 @@ class TactileDataset(Dataset):
         tactile = f[S.FRAMES][frame]
         wrench = f[S.WRENCH][frame]
         pose = f[S.POSE_MEASURED][frame]
-        condition = place_object(self._objects[run], pose[0], pose[1], pose[3], self.mm_per_px[run])
+        obj = self._objects[run]
+        condition = condition_image(obj, pose[0], pose[1], pose[3], self.mm_per_px[run], tactile.shape[1], self.size)
         return {
-            "condition": self._to_tensor(condition),
+            "condition": image_to_tensor(condition),
             "wrench": torch.from_numpy(normalise_wrench(wrench, self.mean, self.std).astype(np.float32)),
             "tactile": self._to_tensor(tactile),
             "pose": torch.from_numpy(pose.astype(np.float32)),

@@ -10,7 +10,27 @@ import typer
 app = typer.Typer(add_completion=False)
 
 
+def one_line_errors(fn):
+    """Expected failures (bad files, values, checkpoints, splits) become one red line and exit 1."""
+    import functools
+
+    @functools.wraps(fn)
+    def wrapper(*args, **kwargs):
+        from model.checkpoint import CheckpointError
+        from rig.errors import RigError
+
+        try:
+            return fn(*args, **kwargs)
+        except (RigError, CheckpointError, ValueError, KeyError, OSError) as exc:
+            message = exc.args[0] if isinstance(exc, KeyError) and exc.args else exc
+            typer.secho(f"error: {message}", fg=typer.colors.RED, err=True)
+            raise typer.Exit(1) from None
+
+    return wrapper
+
+
 @app.command()
+@one_line_errors
 def train(
     data: Annotated[Path, typer.Option(help="A split directory from `dataset split` (split.json + index files).")],
     out: Annotated[Path, typer.Option(
@@ -44,36 +64,30 @@ def train(
     """
     import dataclasses
 
-    from dataset.split import SplitError
     from model.config import PRESET_TRAINING, preset as make_preset
     from model.config_file import load_model_file
-    from model.trainer import CheckpointError, TrainConfig, Trainer
-    from rig.errors import ConfigError
+    from model.trainer import TrainConfig, Trainer
 
-    try:
-        if config is not None:
-            model_cfg, train_fields = load_model_file(config, preset)
-        else:
-            model_cfg, train_fields = make_preset(preset or "tiny"), dict(PRESET_TRAINING.get(preset or "tiny", {}))
-        model_over = {k: v for k, v in (("image_size", image_size), ("conditioning", conditioning),
-                                         ("prediction", prediction)) if v is not None}
-        if model_over:
-            model_cfg = dataclasses.replace(model_cfg, **model_over)
-        given = {"steps": steps, "batch_size": batch_size, "lr": lr, "checkpoint_every": checkpoint_every,
-                 "sample_every": sample_every, "seed": seed, "mixed_precision": mixed_precision}
-        cfg = TrainConfig(**{**train_fields, **{k: v for k, v in given.items() if v is not None}})
-        trainer = Trainer(model_cfg, cfg, data, out, device=device, log=typer.echo)
-        if resume:
-            trainer.resume()
-            trainer.log(f"resumed at step {trainer.step}")
-        trainer.log(f"model: {model_cfg.image_size} px, widths {list(model_cfg.block_out_channels)}, "
-                   f"{model_cfg.conditioning}; {len(trainer.data)} training frames; device {trainer.device}"
-                   + (f" x {trainer.acc.num_processes} processes" if trainer.acc.num_processes > 1 else ""))
-        trainer.train()
-        trainer.log(f"checkpoint: {trainer.save()}")
-    except (KeyError, ValueError, SplitError, CheckpointError, ConfigError, FileNotFoundError) as exc:
-        typer.secho(f"error: {exc}", fg=typer.colors.RED, err=True)
-        raise typer.Exit(1)
+    if config is not None:
+        model_cfg, train_fields = load_model_file(config, preset)
+    else:
+        model_cfg, train_fields = make_preset(preset or "tiny"), dict(PRESET_TRAINING.get(preset or "tiny", {}))
+    model_over = {k: v for k, v in (("image_size", image_size), ("conditioning", conditioning),
+                                     ("prediction", prediction)) if v is not None}
+    if model_over:
+        model_cfg = dataclasses.replace(model_cfg, **model_over)
+    given = {"steps": steps, "batch_size": batch_size, "lr": lr, "checkpoint_every": checkpoint_every,
+             "sample_every": sample_every, "seed": seed, "mixed_precision": mixed_precision}
+    cfg = TrainConfig(**{**train_fields, **{k: v for k, v in given.items() if v is not None}})
+    trainer = Trainer(model_cfg, cfg, data, out, device=device, log=typer.echo)
+    if resume:
+        trainer.resume()
+        trainer.log(f"resumed at step {trainer.step}")
+    trainer.log(f"model: {model_cfg.image_size} px, widths {list(model_cfg.block_out_channels)}, "
+               f"{model_cfg.conditioning}; {len(trainer.data)} training frames; device {trainer.device}"
+               + (f" x {trainer.acc.num_processes} processes" if trainer.acc.num_processes > 1 else ""))
+    trainer.train()
+    trainer.log(f"checkpoint: {trainer.save()}")
 
 
 generate_app = typer.Typer(add_completion=False)
@@ -90,10 +104,13 @@ def _numbers(text: str, n: int, what: str) -> list[float]:
 
 
 @generate_app.command()
+@one_line_errors
 def generate(
     checkpoint: Annotated[Path, typer.Option(help="A run directory written by `train`.")],
     out: Annotated[Path, typer.Option(help="The generated frame (PNG); with --split, a folder of PNGs.")],
-    object_image: Annotated[Optional[Path], typer.Option("--object", help="The object's contact face (PNG/JPEG); needed unless --split (default: none).")] = None,
+    object_image: Annotated[Optional[str], typer.Option("--object", help=(
+        "The object: a PNG/JPEG of its contact face spanning the sensor's field of view, a library object name "
+        "(e.g. sphere10mm) or a run file (.h5, its object image); needed unless --split (default: none)."))] = None,
     wrench: Annotated[Optional[str], typer.Option(help="Fx,Fy,Fz (N),Mx,My,Mz (N·mm); needed unless --split (default: none).")] = None,
     pose: Annotated[str, typer.Option(help="x,y (mm),theta (deg) of the object on the sensor.")] = "0,0,0",
     split: Annotated[Optional[Path], typer.Option(
@@ -104,39 +121,95 @@ def generate(
     sampler: Annotated[str, typer.Option(help="ddim, ddpm or dpm.")] = "ddim",
     guidance: Annotated[float, typer.Option(help="Classifier-free guidance weight (1: none).", min=0.0)] = 1.0,
     seed: Annotated[int, typer.Option(help="Noise seed: the same seed gives the same frames.")] = 0,
+    size: Annotated[Optional[int], typer.Option(
+        help="Write the frame at this many pixels square (default: the model's own size; larger is upsampled, and "
+             "says so).", min=8, max=4096)] = None,
+    device: Annotated[Optional[str], typer.Option(help="cpu or cuda (default: cuda when available).")] = None,
 ):
-    """Generate a tactile frame for an object image, a wrench and a pose, or every frame of a split."""
+    """Generate a tactile frame for an object, a wrench and a pose, or every frame of a split."""
     import cv2
 
     from model.inference import TrainedModel
-    from model.trainer import CheckpointError
 
-    try:
-        model = TrainedModel.load(checkpoint)
-        if split is not None:
-            written = model.generate_split(split, part, out, limit=limit, steps=steps, sampler=sampler, seed=seed,
-                                           guidance=guidance, log=typer.echo)
-            typer.echo(f"{out}: {written} frames (PNG, named RUN-FRAME.png) and index.csv")
-            return
-        if object_image is None or wrench is None:
-            raise typer.BadParameter("give --object and --wrench, or --split")
-        w = _numbers(wrench, 6, "--wrench")
-        p = _numbers(pose, 3, "--pose")
-        img = cv2.imread(str(object_image), cv2.IMREAD_COLOR)
+    model = TrainedModel.load(checkpoint, _device(device))
+    if split is not None:
+        written = model.generate_split(split, part, out, limit=limit, steps=steps, sampler=sampler, seed=seed,
+                                       guidance=guidance, log=typer.echo)
+        typer.echo(f"{out}: {written} frames (PNG, named RUN-FRAME.png) and index.csv")
+        return
+    if object_image is None or wrench is None:
+        raise typer.BadParameter("give --object and --wrench, or --split")
+    w = _numbers(wrench, 6, "--wrench")
+    p = _numbers(pose, 3, "--pose")
+    img = _object_image(object_image, model.frame_px, model.mm_per_px)
+    frame = model.generate(img, w, p, steps=steps, sampler=sampler, seed=seed, guidance=guidance)
+    native = frame.shape[0]
+    note = f"the model's own size, {native}x{native}"
+    if size is not None and size != native:
+        frame = cv2.resize(frame, (size, size), interpolation=cv2.INTER_CUBIC if size > native else cv2.INTER_AREA)
+        note = f"{'upsampled' if size > native else 'downsampled'} from the model's {native}x{native}"
+    _write_png(out, frame)
+    typer.echo(f"{out}: {frame.shape[1]}x{frame.shape[0]} ({note})")
+
+
+def _device(device: str | None) -> str:
+    import torch
+
+    if device is None:
+        return "cuda" if torch.cuda.is_available() else "cpu"
+    if device.split(":")[0] not in ("cpu", "cuda"):
+        raise ValueError(f"--device: expected cpu or cuda, got {device!r}")
+    if device.startswith("cuda") and not torch.cuda.is_available():
+        raise ValueError("--device cuda: no CUDA device is available here")
+    return device
+
+
+def _object_image(source: str, frame_px: int, mm_per_px: float):
+    """The object image for --object: a picture file, a run file's object image, or a library object drawn at
+    the training frames' scale."""
+    import cv2
+
+    path = Path(source)
+    if path.suffix.lower() in (".h5", ".hdf5"):
+        from acquisition import schema as S
+        from acquisition.run_file import open_for_reading
+
+        with open_for_reading(path) as f:
+            if S.OBJECT_IMAGE not in f:
+                raise ValueError(f"{path}: has no {S.OBJECT_IMAGE} dataset")
+            return f[S.OBJECT_IMAGE][()]
+    if path.suffix:
+        img = cv2.imread(str(path), cv2.IMREAD_COLOR)
         if img is None:
-            raise ValueError(f"{object_image}: cannot read the object image")
-        frame = model.generate(img, w, p, steps=steps, sampler=sampler, seed=seed, guidance=guidance)
-    except (CheckpointError, ValueError, KeyError, FileNotFoundError) as exc:
-        typer.secho(f"error: {exc}", fg=typer.colors.RED, err=True)
-        raise typer.Exit(1)
-    cv2.imwrite(str(out), frame)
-    typer.echo(f"{out}: {frame.shape[1]}x{frame.shape[0]}")
+            raise ValueError(f"--object {path}: cannot read it as an image")
+        return img
+    from rig.sim.tactile.indenters import INDENTERS, get_indenter
+
+    if source not in INDENTERS:
+        raise ValueError(f"--object {source!r}: not an image or run file, nor a library object "
+                         f"({', '.join(INDENTERS)})")
+    return get_indenter(source).object_image(frame_px, mm_per_px)
+
+
+def _write_png(path: Path, image) -> None:
+    """Write an image, creating its folder; a failed write is an error, never a silent success."""
+    import cv2
+
+    if path.suffix.lower() not in (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff"):
+        raise ValueError(f"--out {path}: expected an image file name ending in .png")
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ValueError(f"--out {path}: cannot create its folder ({exc.strerror})") from None
+    if not cv2.imwrite(str(path), image):
+        raise ValueError(f"--out {path}: could not write the image")
 
 
 evaluate_app = typer.Typer(add_completion=False)
 
 
 @evaluate_app.command()
+@one_line_errors
 def evaluate(
     checkpoint: Annotated[Path, typer.Option(help="A run directory written by `train`.")],
     split: Annotated[Path, typer.Option(help="The split directory; its test part is evaluated.")],
@@ -160,19 +233,14 @@ def evaluate(
     import torch
 
     from model.evaluate import evaluate as run, report
-    from model.trainer import CheckpointError
 
     try:
         pairs = [(s.split(":")[0], int(s.split(":")[1])) for s in settings.split(",")]
     except (IndexError, ValueError):
         raise typer.BadParameter(f"--settings: expected sampler:steps[,sampler:steps...], got {settings!r}") from None
-    try:
-        ev = run(checkpoint, split, part=part, settings=pairs, limit=limit, markers=markers, baseline=baseline,
-                 seed=seed, batch_size=batch_size, device=device or ("cuda" if torch.cuda.is_available() else "cpu"),
-                 log=typer.echo)
-    except (CheckpointError, ValueError, KeyError, FileNotFoundError) as exc:
-        typer.secho(f"error: {exc}", fg=typer.colors.RED, err=True)
-        raise typer.Exit(1)
+    ev = run(checkpoint, split, part=part, settings=pairs, limit=limit, markers=markers, baseline=baseline,
+             seed=seed, batch_size=batch_size, device=device or ("cuda" if torch.cuda.is_available() else "cpu"),
+             log=typer.echo)
     for r in ev.rows + ([ev.baseline] if ev.baseline else []):
         mk = "" if r.marker_px is None else f"  markers {r.marker_px:.2f} px"
         typer.echo(f"{r.setting:>16}: MSE {r.mse:7.2f}  MAE {r.mae:5.2f}  SSIM {r.ssim:.3f}  PSNR {r.psnr:5.2f}"

@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import copy
 import dataclasses
-import json
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -24,9 +23,10 @@ from typing import Callable
 
 import numpy as np
 import torch
-from safetensors.torch import load_file, save_file
 
 from dataset.torch_dataset import TactileDataset, to_model_inputs
+from model import checkpoint as C
+from model.checkpoint import CheckpointError
 from model.config import ModelConfig
 from model.diffusion import Diffusion
 from model.network import ContactDenoiser
@@ -44,10 +44,6 @@ class TrainConfig:
     sample_steps: int = 25  # DDIM steps for the validation samples
     seed: int = 0  # data order and noise
     mixed_precision: str = "auto"  # auto (bf16 on CUDA when supported, else fp16; none on CPU) | no | fp16 | bf16
-
-
-class CheckpointError(ValueError):
-    pass
 
 
 class Trainer:
@@ -160,52 +156,56 @@ class Trainer:
 
     # -- checkpoints -------------------------------------------------------------------
     def save(self) -> Path:
-        ck = self.out / "checkpoint"
+        ck = C.folder(self.out)
         self.acc.wait_for_everyone()
         if not self.main:
             return ck
         ck.mkdir(parents=True, exist_ok=True)
-        net = self.acc.unwrap_model(self.net)
-        save_file({k: v.contiguous() for k, v in net.state_dict().items()}, str(ck / "model.safetensors"))
-        save_file({k: v.contiguous() for k, v in self.ema.state_dict().items()}, str(ck / "ema.safetensors"))
+        C.write_tensors(ck, C.MODEL, self.acc.unwrap_model(self.net).state_dict())
+        C.write_tensors(ck, C.EMA, self.ema.state_dict())
         opt = self.opt.state_dict()
         tensors = {f"{pid}.{key}": v for pid, st in opt["state"].items() for key, v in st.items()
                    if isinstance(v, torch.Tensor)}
         tensors["noise_generator_state"] = self.noise.get_state()
-        save_file(tensors, str(ck / "optimizer.safetensors"))
+        C.write_tensors(ck, C.OPTIMIZER, tensors)
         meta = {"step": self.step, "model": dataclasses.asdict(self.model_cfg), "train": dataclasses.asdict(self.cfg),
                 "param_groups": opt["param_groups"], "losses": self.losses,
                 # what inference needs to condition like training did
                 "wrench_mean": self.data.manifest["wrench_mean"], "wrench_std": self.data.manifest["wrench_std"],
-                "mm_per_px": self.data.mm_per_px[0]}
-        (ck / "state.json").write_text(json.dumps(meta))
+                "mm_per_px": self.data.mm_per_px[0],
+                # the frame width that mm_per_px belongs to: an object image spans frame_px × mm_per_px mm
+                "frame_px": int(self.data.manifest["runs"][0]["frame_shape"][1])}
+        C.write_state(ck, meta)  # last: a checkpoint with state.json is a complete one
         return ck
 
     def resume(self) -> None:
-        ck = self.out / "checkpoint"
-        if not (ck / "state.json").exists():
-            raise CheckpointError(f"{ck}: no checkpoint to resume")
-        meta = json.loads((ck / "state.json").read_text())
-        mine = json.loads(json.dumps(dataclasses.asdict(self.model_cfg)))
-        if meta["model"] != mine:
-            diff = {k: (meta["model"].get(k), v) for k, v in mine.items() if meta["model"].get(k) != v}
+        ck = C.folder(self.out)
+        meta = C.read_state(ck, hint=" to resume")
+        saved = C.model_config(meta, ck / C.STATE)
+        if saved != self.model_cfg:
+            mine, theirs = dataclasses.asdict(self.model_cfg), dataclasses.asdict(saved)
+            diff = {k: (theirs.get(k), v) for k, v in mine.items() if theirs.get(k) != v}
             raise CheckpointError(f"{ck}: trained with a different model config (checkpoint vs now: {diff})")
-        try:
-            self.acc.unwrap_model(self.net).load_state_dict(load_file(str(ck / "model.safetensors"), device=str(self.device)))
-            self.ema.load_state_dict(load_file(str(ck / "ema.safetensors"), device=str(self.device)))
-        except RuntimeError as exc:
-            raise CheckpointError(f"{ck}: weights do not fit this model: {str(exc).splitlines()[0]}") from exc
-        tensors = load_file(str(ck / "optimizer.safetensors"))
-        noise_state = tensors.pop("noise_generator_state")
+        C.load_weights(self.acc.unwrap_model(self.net), ck, C.MODEL, self.device)
+        C.load_weights(self.ema, ck, C.EMA, self.device)
+        tensors = C.read_tensors(ck, C.OPTIMIZER)
+        noise_state = tensors.pop("noise_generator_state", None)
+        if noise_state is None:
+            raise CheckpointError(f"{ck / C.OPTIMIZER}: no noise_generator_state (an incomplete checkpoint)")
         if self.acc.process_index == 0:  # the others restart their streams (one state is saved)
             self.noise.set_state(noise_state)
         state: dict = {}
         for name, v in tensors.items():
-            pid, key = name.split(".", 1)
+            pid, _, key = name.partition(".")
+            if not pid.isdigit() or not key:
+                raise CheckpointError(f"{ck / C.OPTIMIZER}: unexpected tensor {name!r}")
             state.setdefault(int(pid), {})[key] = v.to(self.device) if key != "step" else v
-        self.opt.load_state_dict({"state": state, "param_groups": meta["param_groups"]})
+        try:
+            self.opt.load_state_dict({"state": state, "param_groups": meta["param_groups"]})
+            self.losses = [float(x) for x in meta["losses"]]
+        except (KeyError, TypeError, ValueError) as exc:
+            raise CheckpointError(f"{ck}: optimizer state does not fit this model ({exc})") from None
         self.step = meta["step"]
-        self.losses = list(meta["losses"])
 
 
 def _precision(choice: str, device: str | None) -> str:

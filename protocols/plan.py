@@ -12,8 +12,15 @@ import math
 from dataclasses import dataclass
 
 from protocols.spec import Protocol
+from rig.errors import ConfigError
 
 AXES = ("x", "y", "z", "theta")
+
+# Caps on an expansion, so that no protocol (a 1e-300 mm depth step, a 1e-4 mm/s crawl at
+# 100 Hz) can hang the planner or plan a run no disk holds.
+MAX_LEVELS = 127  # a frame's level is stored as int8 in the run file (acquisition/schema.py)
+MAX_STEPS = 10_000  # the paper's sequence is 9 steps per level: 127 levels need 1,145
+MAX_FRAMES = 1_000_000  # ~200 GB of 256x256 RGB frames, 170x the paper's 5,783 per object
 
 
 @dataclass(frozen=True)
@@ -52,7 +59,20 @@ def _move(index, phase, level, start, end, speed, captured) -> Step:
 
 
 def expand(p: Protocol) -> list[Step]:
-    """The paper's sequence (shared/REFERENCE.md §1), level by level."""
+    """The paper's sequence (shared/REFERENCE.md §1), level by level.
+
+    Raises ConfigError naming the protocol's file and key when the expansion would pass
+    MAX_LEVELS or MAX_STEPS; it is counted before anything is built.
+    """
+    n_levels = round(p.max_depth_mm / p.depth_step_mm)
+    if n_levels > MAX_LEVELS:
+        raise ConfigError(p.path, "motion.depth_step_mm",
+                          f"max_depth_mm / depth_step_mm = {p.max_depth_mm} / {p.depth_step_mm} is {n_levels} levels; "
+                          f"the planner's cap is {MAX_LEVELS} (a level is stored as int8)")
+    per_level = 1 + (6 if p.shear_mm > 0 else 0) + (2 if p.twist_deg > 0 else 0)
+    if 2 + n_levels * per_level > MAX_STEPS:
+        raise ConfigError(p.path, "motion.depth_step_mm",
+                          f"{2 + n_levels * per_level} steps; the planner's cap is {MAX_STEPS}")
     steps: list[Step] = []
     s, v = p.shear_mm, p.speed_mm_s
     pose = (0.0, 0.0, p.approach_mm, 0.0)
@@ -87,7 +107,15 @@ class Plan:
 
     @classmethod
     def of(cls, protocol: Protocol) -> "Plan":
-        return cls(protocol, expand(protocol))
+        """The plan of ``protocol``; ConfigError (file, key, the cap) when it passes MAX_LEVELS,
+        MAX_STEPS or MAX_FRAMES."""
+        plan = cls(protocol, expand(protocol))
+        frames = plan.frame_count
+        if frames > MAX_FRAMES:
+            raise ConfigError(protocol.path, "capture.rate_hz",
+                              f"{frames} frames ({plan.captured_duration_s:.0f} s captured at {protocol.capture_hz:g} Hz); "
+                              f"the planner's cap is {MAX_FRAMES}: raise motion.speed_mm_s or lower capture.rate_hz")
+        return plan
 
     @property
     def captured_steps(self) -> list[Step]:

@@ -14,6 +14,7 @@ from rig.errors import ConfigError
 
 LIBRARY = Path(__file__).parent / "library"
 SENSOR_KINDS = ("rgb", "rgb_markers", "white_markers")
+MAX_DEPTH_MM = 10.0  # see parse_protocol
 
 
 @dataclass(frozen=True)
@@ -53,8 +54,11 @@ def parse_protocol(text: str, path: str = "<string>") -> Protocol:
         description=meta.get("description", str, ""),
         object=meta.get("object", str, choices=tuple(INDENTERS)),
         sensor=meta.get("sensor", str, "rgb", choices=SENSOR_KINDS),
-        depth_step_mm=motion.get("depth_step_mm", float, 0.4, positive=True),
-        max_depth_mm=motion.get("max_depth_mm", float, 1.6, positive=True),
+        # 1 µm per level is below what the stages repeat; 10 mm is deeper than any tactile gel
+        # is thick (a few mm) — deeper presses only crush the sensor. The planner also caps
+        # the number of levels (protocols/plan.py).
+        depth_step_mm=motion.get("depth_step_mm", float, 0.4, low=0.001, high=MAX_DEPTH_MM),
+        max_depth_mm=motion.get("max_depth_mm", float, 1.6, low=0.001, high=MAX_DEPTH_MM),
         shear_mm=motion.get("shear_mm", float, 2.0, low=0.0, high=20.0),
         twist_deg=motion.get("twist_deg", float, 5.0, low=0.0, high=90.0),
         speed_mm_s=motion.get("speed_mm_s", float, 0.01, low=1e-4, high=10.0),
@@ -65,6 +69,11 @@ def parse_protocol(text: str, path: str = "<string>") -> Protocol:
     )
     for table in (meta, motion, capture):
         table.done()
+    # 0 turns a move off; a sub-micrometre (or micro-degree) one is below what the stages
+    # repeat, and at 1e-311 its length underflows to zero, leaving a move with no duration
+    for key, value, least, unit in (("shear_mm", p.shear_mm, 0.001, "mm"), ("twist_deg", p.twist_deg, 0.001, "deg")):
+        if 0 < value < least:
+            raise ConfigError(path, f"motion.{key}", f"must be 0 (none) or at least {least} {unit}, got {value!r}")
     top.done()
     levels = p.max_depth_mm / p.depth_step_mm
     if abs(levels - round(levels)) > 1e-6:
@@ -93,9 +102,13 @@ def apply_settings(text: str, settings: list[str], path: str) -> str:
                                                          "such as motion.speed_mm_s=0.1")
         value = value.strip()
         try:
-            tomllib.loads(f"v = {value}")
+            parsed = tomllib.loads(f"v = {value}")
         except tomllib.TOMLDecodeError:
             value = json.dumps(value)  # a bare word: a string
+        else:
+            # one value on one line: a newline would let a --set add keys or whole tables
+            if "\n" in value or "\r" in value or set(parsed) != {"v"}:
+                raise ConfigError(path, name.strip(), f"--set {setting!r}: the value must be one TOML value on one line")
         entry = f"{key} = {value}  # set on the command line"
         in_section, done, header = False, False, None
         for i, line in enumerate(lines):

@@ -6,6 +6,7 @@ Positions are in the axis unit (mm or deg); ``position = native * scale + offset
 
 from __future__ import annotations
 
+import math
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -15,7 +16,7 @@ from rig.errors import ConfigError
 
 AXIS_NAMES = ("x", "y", "z", "theta")
 AXIS_DRIVERS = ("zaber", "pr_drive")
-GAUGE_DRIVERS = ("ft300", "m8128")
+GAUGE_DRIVERS = ("ft300", "m8128", "ati_netft")
 CAMERA_DRIVERS = ("v4l2", "folder", "video", "sim")
 
 
@@ -51,6 +52,9 @@ class GaugeConfig:
     timeout_s: float = 0.5
     retries: int = 2
     fresh_after_s: float = 0.05  # bound on the stream's measurement-to-arrival latency, s
+    rdt_port: int = 49152  # ati_netft: UDP port of RDT (``port`` is the box's host address)
+    http_port: int = 80  # ati_netft: where netftapi2.xml (counts per unit) is served
+    rdt_mode: str = "realtime"  # ati_netft: realtime | buffered RDT streaming
 
 
 @dataclass(frozen=True)
@@ -91,6 +95,49 @@ class RigConfig:
     pendant: PendantConfig | None = None
 
 
+def _bounds_text(low, high, positive: bool) -> str:
+    """'> 0', '> 0 and <= 300.0', 'in [0.001, 1.0]', '>= 0', '<= 10'."""
+    if positive and (low is None or low <= 0):
+        return "> 0" + (f" and <= {high!r}" if high is not None else "")
+    if low is not None and high is not None:
+        return f"in [{low!r}, {high!r}]"
+    return f">= {low!r}" if low is not None else f"<= {high!r}"
+
+
+def number_problem(value: Any, *, low: float | None = None, high: float | None = None, positive: bool = False,
+                   integer: bool = False) -> str | None:
+    """What is wrong with ``value`` as a finite number within the bounds ("must be > 0, got
+    -1.0"), or None when nothing is. NaN compares false with every bound, so a plain
+    ``low <= value <= high`` would let it through; inf and huge ints overflow later arithmetic."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or (integer and not isinstance(value, int)):
+        return f"must be {'an integer' if integer else 'a number'}, got {value!r}"
+    if not integer:
+        try:
+            value = float(value)
+        except OverflowError:  # an int too large for a float: not a physical quantity
+            return f"must be a finite number, got {value!r}"
+        if not math.isfinite(value):
+            return f"must be a finite number, got {value!r}"
+    if (positive and value <= 0) or (low is not None and value < low) or (high is not None and value > high):
+        return f"must be {_bounds_text(low, high, positive)}, got {value!r}"
+    return None
+
+
+def finite_number(path: str, key: str, value: Any, *, low: float | None = None, high: float | None = None,
+                  positive: bool = False, integer: bool = False) -> float | int:
+    """``value`` as a float (an int when ``integer``) if it is a finite number within the
+    bounds; else a one-line ConfigError naming ``path``, ``key`` and the value.
+
+    The one checker for numbers entering the project: rig config, protocols and ``--set``,
+    import metadata, split ratios, numeric command-line options (rig/cli/options.py).
+    Self-contained on purpose: it moves to a foundation package later.
+    """
+    problem = number_problem(value, low=low, high=high, positive=positive, integer=integer)
+    if problem:
+        raise ConfigError(path, key, problem)
+    return value if integer else float(value)
+
+
 class _Table:
     """Typed access to one TOML table, with errors naming file and key."""
 
@@ -108,25 +155,28 @@ class _Table:
 
     def get(self, name: str, kind: type, default: Any = ..., *, choices=None, low=None, high=None,
             positive: bool = False):
+        """The value of ``name``; numbers (int, float) go through :func:`finite_number`."""
         self.used.add(name)
         if name not in self.data:
             if default is ...:
                 raise self.error(name, "is required" + (f" (one of {', '.join(map(repr, choices))})" if choices else ""))
             return default
         value = self.data[name]
-        if kind is float and isinstance(value, int) and not isinstance(value, bool):
-            value = float(value)
-        if not isinstance(value, kind) or (kind is int and isinstance(value, bool)):
+        if kind in (int, float):
+            is_number = isinstance(value, (int, float)) and not isinstance(value, bool)
+            if not is_number or (kind is int and not isinstance(value, int)):
+                raise self.error(name, f"must be {kind.__name__}, got {value!r}")
+            return finite_number(self.path, self.key(name), value, low=low, high=high, positive=positive,
+                                 integer=kind is int)
+        if not isinstance(value, kind):
             raise self.error(name, f"must be {kind.__name__}, got {value!r}")
         if choices is not None and value not in choices:
             raise self.error(name, f"must be one of {', '.join(map(repr, choices))}, got {value!r}")
-        if positive and value <= 0:
-            raise self.error(name, f"must be > 0, got {value!r}")
-        if (low is not None and value < low) or (high is not None and value > high):
-            raise self.error(name, f"must be in [{low}, {high}], got {value!r}")
         return value
 
-    def vector(self, name: str, n: int, default: Any = ..., *, positive: bool = False) -> tuple[float, ...]:
+    def vector(self, name: str, n: int, default: Any = ..., *, low=None, high=None,
+               positive: bool = False) -> tuple[float, ...]:
+        """A list of ``n`` numbers, each checked like :meth:`get` (key ``name[i]``)."""
         self.used.add(name)
         if name not in self.data:
             if default is ...:
@@ -136,9 +186,8 @@ class _Table:
         if not isinstance(value, list) or len(value) != n or not all(
                 isinstance(v, (int, float)) and not isinstance(v, bool) for v in value):
             raise self.error(name, f"must be a list of {n} numbers, got {value!r}")
-        if positive and any(v <= 0 for v in value):
-            raise self.error(name, f"every value must be > 0, got {value!r}")
-        return tuple(float(v) for v in value)
+        return tuple(finite_number(self.path, f"{self.key(name)}[{i}]", v, low=low, high=high, positive=positive)
+                     for i, v in enumerate(value))
 
     def done(self) -> None:
         unknown = sorted(set(self.data) - self.used)
@@ -146,37 +195,57 @@ class _Table:
             raise self.error(unknown[0], f"unknown key; expected one of {', '.join(sorted(self.used))}")
 
 
+# Physical bounds of a rig config. Each is far outside any sane setting but close enough
+# that a typo (or NaN/inf, refused by finite_number) cannot disarm a limit or overflow a
+# conversion to native units.
+TRAVEL_LIMIT = 1e4  # mm or deg: 10 m of linear travel, or ~28 turns; no lab stage goes further
+MAX_SPEED = 1000.0  # mm/s or deg/s: an order of magnitude above motorised lab stages (the simulated ones do 5 mm/s, 30 deg/s)
+MAX_TIMEOUT_S = 60.0  # a device that needs longer than a minute to answer is not answering
+# The FT300 reports forces as int16 / 100 N and torques as int16 / 1000 N·m (its manual, as
+# rig/drivers/ft300.py decodes them), so it saturates at ±327.67 N and ±32 767 N·mm; its rated
+# range is ±300 N and ±30 N·m. A limit above the gauge's full scale can never trip (issue 12 saw
+# a NaN limit let z press on with the gauge pinned at 327 N); a tactile gel is ruined far below.
+MAX_FORCE_LIMIT_N = 300.0
+MAX_TORQUE_LIMIT_NMM = 30000.0
+MAX_BAUDRATE = 12_000_000  # the fastest USB-serial bridges (FTDI FT232H) top out at 12 Mbaud
+MAX_PULSES_PER_REV = 0xFFFF  # the drive holds pulses/rev in one 16-bit register (rig/drivers/pr_registers.py)
+
+
 def _axis(path: str, name: str, data: Any) -> AxisConfig:
     t = _Table(path, f"axes.{name}", data)
     driver = t.get("driver", str, choices=AXIS_DRIVERS)
     unit = t.get("unit", str, "deg" if name == "theta" else "mm", choices=("mm", "deg"))
-    travel = t.vector("travel", 2)
+    travel = t.vector("travel", 2, low=-TRAVEL_LIMIT, high=TRAVEL_LIMIT)
     if travel[0] >= travel[1]:
         raise t.error("travel", f"must be [low, high] with low < high, got {list(travel)}")
-    max_speed = t.get("max_speed", float, positive=True)
+    max_speed = t.get("max_speed", float, positive=True, high=MAX_SPEED)
     jog_speed = t.get("jog_speed", float, min(1.0, max_speed), positive=True)
     if jog_speed > max_speed:
         raise t.error("jog_speed", f"must not exceed max_speed ({max_speed}), got {jog_speed}")
     cfg = dict(
         name=name, driver=driver, unit=unit, travel=travel, max_speed=max_speed, jog_speed=jog_speed,
         port=t.get("port", str),
-        baudrate=t.get("baudrate", int, 115200 if driver == "zaber" else 38400, positive=True),
+        baudrate=t.get("baudrate", int, 115200 if driver == "zaber" else 38400, positive=True, high=MAX_BAUDRATE),
         device=t.get("device", int, 1, low=0, high=247),
-        offset=t.get("offset", float, 0.0),
-        timeout_s=t.get("timeout_s", float, 0.5, positive=True),
+        offset=t.get("offset", float, 0.0, low=-10 * TRAVEL_LIMIT, high=10 * TRAVEL_LIMIT),
+        timeout_s=t.get("timeout_s", float, 0.5, positive=True, high=MAX_TIMEOUT_S),
         retries=t.get("retries", int, 2, low=0, high=10),
         requires_home=t.get("requires_home", bool, True),
     )
     if driver == "zaber":
-        scale = t.get("scale", float)
-        if scale == 0:
-            raise t.error("scale", "must be non-zero (unit per microstep; negative flips the direction)")
+        # unit per microstep: 1e-9 mm is far below any microstep (positions become int
+        # microsteps, so a tinier scale overflows them); more than 1000 per step is no stage
+        scale = t.get("scale", float, low=-1e3, high=1e3)
+        if abs(scale) < 1e-9:
+            raise t.error("scale", f"must be non-zero, 1e-9 <= |scale| (unit per microstep; negative flips the "
+                                   f"direction), got {scale!r}")
         cfg.update(scale=scale, axis_number=t.get("axis_number", int, 1, low=1, high=9))
     else:
-        cfg.update(pulses_per_rev=t.get("pulses_per_rev", int, positive=True))
-        per_rev = t.get("travel_per_rev", float)
-        if per_rev == 0:
-            raise t.error("travel_per_rev", "must be non-zero (unit per motor revolution)")
+        cfg.update(pulses_per_rev=t.get("pulses_per_rev", int, positive=True, high=MAX_PULSES_PER_REV))
+        per_rev = t.get("travel_per_rev", float, low=-TRAVEL_LIMIT, high=TRAVEL_LIMIT)
+        if abs(per_rev) < 1e-6:  # below 1 nm (or µdeg) per motor turn no gearbox exists
+            raise t.error("travel_per_rev", f"must be non-zero, 1e-6 <= |travel_per_rev| (unit per motor revolution), "
+                                            f"got {per_rev!r}")
         cfg.update(travel_per_rev=per_rev)
     t.done()
     return AxisConfig(**cfg)
@@ -188,13 +257,16 @@ def _gauge(path: str, data: Any) -> GaugeConfig:
     cfg = GaugeConfig(
         driver=driver,
         port=t.get("port", str),
-        baudrate=t.get("baudrate", int, 19200 if driver == "ft300" else 115200, positive=True),
+        baudrate=t.get("baudrate", int, {"ft300": 19200}.get(driver, 115200), positive=True, high=MAX_BAUDRATE),
         device_id=t.get("device_id", int, 9, low=1, high=247),
         mode=t.get("mode", str, "stream", choices=("stream", "poll")),
         rate_hz=t.get("rate_hz", int, 100, low=1, high=2000),
-        timeout_s=t.get("timeout_s", float, 0.5, positive=True),
+        timeout_s=t.get("timeout_s", float, 0.5, positive=True, high=MAX_TIMEOUT_S),
         retries=t.get("retries", int, 2, low=0, high=10),
         fresh_after_s=t.get("fresh_after_s", float, 0.05, low=0.0, high=3600.0),
+        rdt_port=t.get("rdt_port", int, 49152, low=1, high=65535),
+        http_port=t.get("http_port", int, 80, low=1, high=65535),
+        rdt_mode=t.get("rdt_mode", str, "realtime", choices=("realtime", "buffered")),
     )
     t.done()
     return cfg
@@ -208,8 +280,8 @@ def _camera(path: str, data: Any) -> CameraConfig:
         device=t.get("device", str, "" if driver == "sim" else ...),
         width=t.get("width", int, 640, low=16, high=8192),
         height=t.get("height", int, 480, low=16, high=8192),
-        fps=t.get("fps", float, 25.0, positive=True),
-        exposure=t.get("exposure", float, None),
+        fps=t.get("fps", float, 25.0, positive=True, high=1000.0),  # above any UVC camera
+        exposure=t.get("exposure", float, None),  # backend units (negative log2 s on some): finite only
         white_balance_K=t.get("white_balance_K", float, None, low=1000.0, high=15000.0),
         discard_frames=t.get("discard_frames", int, 5, low=0, high=1000),
         mm_per_px=t.get("mm_per_px", float, None, low=1e-4, high=10.0),
@@ -221,8 +293,8 @@ def _camera(path: str, data: Any) -> CameraConfig:
 def _safety(path: str, data: Any) -> SafetyConfig:
     t = _Table(path, "safety", data)
     cfg = SafetyConfig(
-        max_force_N=t.vector("max_force_N", 3, positive=True),
-        max_torque_Nmm=t.vector("max_torque_Nmm", 3, positive=True),
+        max_force_N=t.vector("max_force_N", 3, positive=True, high=MAX_FORCE_LIMIT_N),
+        max_torque_Nmm=t.vector("max_torque_Nmm", 3, positive=True, high=MAX_TORQUE_LIMIT_NMM),
         poll_s=t.get("poll_s", float, 0.02, low=0.001, high=1.0),
     )
     t.done()

@@ -9,7 +9,9 @@ clear afterwards. +z is away from the gel.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
+from typing import Callable
 
 from rig.errors import RigError
 
@@ -21,35 +23,35 @@ class ContactFound:
     resolution_mm: float  # distance z moves in one poll at the slow speed
 
 
-def _descend_until_touch(rig, z_floor: float, speed: float, threshold_N: float) -> tuple[float, float]:
-    guard = rig.start_move({"z": z_floor}, speed)
-    try:
-        while True:
-            fz = rig.gauge.read().fz_N
-            if abs(fz) >= threshold_N:
-                rig.stop_all()
-                return rig.axes["z"].position(), fz
-            if not rig.monitor(("z",), guard, "contact search"):
-                raise RigError(f"no contact down to z = {z_floor:.3f} mm (|Fz| stayed below {threshold_N} N); "
-                               "start lower or allow more travel")
-            rig.clock.sleep(rig.config.safety.poll_s)
-    except BaseException:
-        rig.stop_all()
-        raise
+def _descend_until_touch(m, z_floor: float, speed: float, threshold_N: float) -> tuple[float, float]:
+    rig = m.rig
+    guard = m.start_move({"z": z_floor}, speed)
+    while True:
+        fz = rig.gauge.read().fz_N
+        if abs(fz) >= threshold_N:
+            m.stop()
+            return rig.axes["z"].position(), fz
+        if not m.monitor(("z",), guard, "contact search"):
+            raise RigError(f"no contact down to z = {z_floor:.3f} mm (|Fz| stayed below {threshold_N} N); "
+                           "start lower or allow more travel")
+        rig.clock.sleep(rig.config.safety.poll_s)
 
 
 def find_contact(rig, *, threshold_N: float = 0.05, speed_mm_s: float = 0.5, max_travel_mm: float = 10.0,
-                 backoff_mm: float = 0.5) -> ContactFound:
-    """Search downwards from the present z (which must be clear of the gel)."""
-    if threshold_N <= 0 or speed_mm_s <= 0 or max_travel_mm <= 0:
-        raise RigError("threshold, speed and travel must be > 0")
-    z_start = rig.axes["z"].position()
-    low = rig.config.axes["z"].travel[0]
-    z_floor = max(low, z_start - max_travel_mm)
-    rig.tare(20)  # clear of the gel: this is the unloaded reading
-    z_touch, _ = _descend_until_touch(rig, z_floor, speed_mm_s, threshold_N)
-    rig.move({"z": min(z_touch + backoff_mm, z_start)}, speed_mm_s)
-    slow = speed_mm_s / 10
-    z_contact, fz = _descend_until_touch(rig, max(low, z_touch - backoff_mm), slow, threshold_N)
-    rig.move({"z": min(z_contact + backoff_mm, z_start)}, speed_mm_s)
+                 backoff_mm: float = 0.5, on_start: Callable[[str], None] | None = None) -> ContactFound:
+    """Search downwards from the present z (which must be clear of the gel), in one motion
+    session: any error or signal stops z and lifts it clear of the gel."""
+    if not all(math.isfinite(v) and v > 0 for v in (threshold_N, speed_mm_s, max_travel_mm, backoff_mm)):
+        raise RigError(f"threshold ({threshold_N} N), speed ({speed_mm_s} mm/s), travel ({max_travel_mm} mm) "
+                       f"and backoff ({backoff_mm} mm) must be finite and > 0")
+    with rig.motion("contact search", on_start=on_start) as m:
+        z_start = rig.axes["z"].position()
+        low = rig.config.axes["z"].travel[0]
+        z_floor = max(low, z_start - max_travel_mm)
+        rig.tare(20)  # clear of the gel: this is the unloaded reading
+        z_touch, _ = _descend_until_touch(m, z_floor, speed_mm_s, threshold_N)
+        m.move({"z": min(z_touch + backoff_mm, z_start)}, speed_mm_s)
+        slow = speed_mm_s / 10
+        z_contact, fz = _descend_until_touch(m, max(low, z_touch - backoff_mm), slow, threshold_N)
+        m.move({"z": min(z_contact + backoff_mm, z_start)}, speed_mm_s)
     return ContactFound(z_contact, fz, slow * rig.config.safety.poll_s)

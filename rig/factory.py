@@ -57,6 +57,11 @@ def open_gauge(cfg: GaugeConfig, clock: Clock, pool: PortPool) -> GaugeBase:
     if cfg.driver == "ft300":
         bus = pool.modbus(cfg.port, cfg.baudrate, cfg.timeout_s, cfg.retries, f"FT300 on {cfg.port}")
         gauge: GaugeBase = FT300(bus, clock, device_id=cfg.device_id, fresh_after_s=cfg.fresh_after_s)
+    elif cfg.driver == "ati_netft":
+        from rig.drivers.ati_netft import AtiNetFT
+
+        gauge = AtiNetFT(cfg.port, clock, rdt_port=cfg.rdt_port, http_port=cfg.http_port, timeout_s=cfg.timeout_s,
+                         retries=cfg.retries, mode=cfg.rdt_mode, fresh_after_s=cfg.fresh_after_s)
     else:
         link = SerialLink(cfg.port, baudrate=cfg.baudrate, timeout_s=cfg.timeout_s, device=f"M8128 on {cfg.port}")
         gauge = M8128(link, clock, rate_hz=cfg.rate_hz, fresh_after_s=cfg.fresh_after_s)

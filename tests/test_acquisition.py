@@ -256,3 +256,20 @@ def test_cli_malformed_protocol_names_file_and_key(tmp_path):
     bad.write_text(QUICK.replace('object = "sphere10mm"', 'object = 7'))
     result = CliRunner().invoke(app, ["run-protocol", str(bad), "--sim"])
     assert result.exit_code == 1 and f"{bad}: [protocol.object] must be str" in result.output
+
+
+@pytest.mark.parametrize("tol,expect_warnings", [(None, False), (1e-30, True)])
+def test_unconverged_contact_solves_are_recorded_in_the_run_file(quick, tmp_path, tol, expect_warnings):
+    """A simulated run says in its file how many contact solves stopped short of tolerance."""
+    out = tmp_path / "run.h5"
+    with simulated_rig_for(quick) as (rig, sim, header):
+        if tol is not None:  # a tolerance below what the solver can reach
+            sim.world.contact.solver.tol = tol
+        acq = Acquisition(rig, Plan.of(quick), monitor_interval_s=monitor_interval_s(quick),
+                          solver_warnings=lambda: sim.world.contact.solver_warnings)
+        result = acq.run(out, header=header)
+    assert result.status == "complete"
+    with open_for_reading(out) as f:
+        recorded = int(f[S.SIM_SOLVER_WARNINGS][()])
+    assert recorded == result.solver_warnings
+    assert (recorded > 0) == expect_warnings

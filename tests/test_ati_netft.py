@@ -245,3 +245,22 @@ def test_silent_sensor_times_out(world, sims):
     with pytest.raises(DeviceTimeout, match="no record after 3 requests"):
         g.read()
     g.close()
+
+
+def test_simulated_rig_with_a_net_ft_moves_under_its_force_guard():
+    """Config kind `ati_netft`: the config, the factory and the simulated rig open it like any gauge."""
+    from rig.clock import ScaledClock
+    from rig.rig import Rig
+    from rig.sim.rig_sim import SimulatedRig
+
+    clock = ScaledClock(20.0)
+    with SimulatedRig(clock, gauge="ati_netft") as sim:
+        cfg = sim.config(with_camera=False)
+        assert cfg.gauge.driver == "ati_netft" and cfg.gauge.rdt_port == sim.netft.rdt_port
+        with Rig.open(cfg, clock) as rig:
+            assert type(rig.gauge).__name__ == "AtiNetFT"
+            z0 = rig.axes["z"].position()
+            with rig.motion("test") as m:
+                m.move({"z": z0 - 0.5}, 2.0)
+            assert abs(rig.axes["z"].position() - (z0 - 0.5)) < 1e-3
+            assert np.all(np.isfinite(rig.status().wrench.as_array()))

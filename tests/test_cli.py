@@ -25,7 +25,7 @@ def test_status_sim_prints_four_axes_and_the_wrench():
 def test_jog_step_sim_moves_z_and_prints_the_new_position():
     result = runner.invoke(app, ["jog", "--axis", "z", "--step", "0.1", "--sim"])
     assert result.exit_code == 0, result.output
-    assert result.output.strip() == "z = 5.1000 mm"
+    assert result.stdout.strip() == "z = 5.1000 mm"  # the "moving" line goes to stderr
 
 
 def test_jog_to_and_speed():

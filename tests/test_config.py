@@ -99,3 +99,21 @@ def test_documented_example_config_is_valid():
     cfg = load_config(Path(__file__).parent.parent / "docs" / "rig.example.toml")
     assert set(cfg.axes) == {"x", "y", "z", "theta"}
     assert cfg.axes["z"].scale < 0 and cfg.pendant.vendor_id == 0x256F
+
+
+@pytest.mark.parametrize("value, words", [
+    (float("nan"), "must be a finite number, got nan"),   # NaN passes every `low <= v <= high`
+    (float("inf"), "must be a finite number, got inf"),
+    (10 ** 400, "must be a finite number"),                # an int too large for a float
+    (True, "must be a number, got True"),                  # bool is an int in Python
+    ("1.0", "must be a number, got '1.0'"),
+    (0.0, "must be > 0 and <= 300.0, got 0.0"),
+    (300.5, "must be > 0 and <= 300.0, got 300.5"),
+])
+def test_finite_number_refuses_what_comparisons_let_through(value, words):
+    from rig.config import finite_number
+
+    with pytest.raises(ConfigError) as err:
+        finite_number("lab/rig.toml", "safety.max_force_N[2]", value, positive=True, high=300.0)
+    assert str(err.value).startswith(f"lab/rig.toml: [safety.max_force_N[2]] {words}")
+    assert finite_number("lab/rig.toml", "k", 40, positive=True, high=300.0) == 40.0

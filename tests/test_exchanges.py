@@ -74,3 +74,33 @@ def test_harness_fails_on_unconsumed_exchange(serve):
     script = ScriptedDevice([(b"/1 1 get pos\n", b"@01 1 OK IDLE -- 0\r\n")])
     with pytest.raises(AssertionError, match="never happened"):
         script.check()
+
+
+def test_ft300_stream_stop_is_fifty_0xff_bytes(serve):
+    # FT300 manual: stream mode ends on a run of 0xFF bytes (about 50); nothing is answered.
+    script = ScriptedDevice([
+        (bytes.fromhex("09 10 01 9A 00 01 02 02 00 CD CA"), append_crc(bytes.fromhex("09 10 01 9A 00 01"))),
+        (b"\xff" * 50, b""),
+    ])
+    server = serve(script)
+    bus = ModbusBus(server.url, baudrate=19200, timeout_s=0.3, retries=0, device="bus")
+    gauge = FT300(bus, SystemClock())
+    gauge.start_stream()
+    gauge.stop_stream()
+    bus.close()
+    script.check()
+
+
+def test_modbus_read_input_and_write_single_bytes(serve):
+    # Modbus Application Protocol v1.1b3 §6.4 (fc 4) and §6.6 (fc 6, reply echoes the request).
+    write = append_crc(bytes.fromhex("01 06 60 02 00 40"))
+    script = ScriptedDevice([
+        (append_crc(bytes.fromhex("09 04 00 B4 00 02")), append_crc(bytes.fromhex("09 04 04 FF FF 00 02"))),
+        (write, write),
+    ])
+    server = serve(script)
+    bus = ModbusBus(server.url, baudrate=38400, timeout_s=0.3, retries=0, device="bus")
+    assert bus.read_input(9, 0xB4, 2, device="gauge") == [0xFFFF, 0x0002]
+    bus.write_register(1, 0x6002, 0x0040, device="drive")
+    bus.close()
+    script.check()

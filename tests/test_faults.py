@@ -155,3 +155,24 @@ def test_stream_device_vanishes_is_raised_to_the_reader(streaming_gauge):
         for _ in range(200):  # a fresh read fails within the stale window, not a hang
             g.read()
             g.buffer.wait_new(g.buffer.total, 1, timeout_s=0.05)
+
+
+def test_modbus_stalled_simulator_is_waited_for_not_timed_out(pr_theta, manual_clock):
+    axis, server = pr_theta
+    server.faults.stall_next(1, 0.5)  # the simulator thread stalls 0.5 s of real time, beyond the 0.15 s timeout
+    t_sim = manual_clock.now()
+    assert axis.position() == pytest.approx(0.0)
+    assert server.faults.counts.stalled == 1
+    assert manual_clock.now() == t_sim  # no simulated time passed: the device answered at once
+
+
+def test_modbus_late_reply_is_skipped_not_used(pr_theta, manual_clock):
+    axis, server = pr_theta
+    axis.move_to(5.0, 1000.0)
+    manual_clock.advance(5.0)
+    server.faults.delay_next(1, 0.2)  # the position reply comes 0.2 s late: the status read follows
+    assert axis.position() == pytest.approx(5.0)  # retried after the 0.15 s timeout
+    manual_clock.advance(0.1)  # the late position reply is out on the wire now
+    for _ in range(3):
+        status = axis.status()  # each read gets its own reply, never the late position
+        assert status.warnings == () and status.position == pytest.approx(5.0)

@@ -93,3 +93,14 @@ def test_m8128_bad_command_is_rejected(live_world, serve):
     with pytest.raises(DeviceRejected, match="SMPF=99999"):
         g.command("AT+SMPF=99999")
     g.close()
+
+
+def test_polled_read_after_a_stream(gauge, live_world):
+    # Stopping a stream leaves no stream bytes behind for the next request's reply.
+    g, _ = gauge
+    press(live_world, 1.0)
+    g.start_stream()
+    assert g.buffer.wait_new(g.buffer.total, 5, timeout_s=2.0)
+    g.stop_stream()
+    for _ in range(3):
+        assert g.read().fz_N == pytest.approx(6.0 + 0.35, abs=0.05)

@@ -30,66 +30,71 @@ def test_status_has_four_axes_and_a_wrench(rig):
 
 def test_soft_limit_refused_before_any_motion(rig, sim):
     before = {n: s.position(sim.clock.now()) for n, s in sim.world.stages.items()}
-    with pytest.raises(SoftLimitError, match="nothing was moved"):
-        rig.move({"x": 1.0, "z": -6.0}, 1.0)  # x is fine, z is not: neither moves
+    with pytest.raises(SoftLimitError, match="nothing was moved"), rig.motion("test") as m:
+        m.move({"x": 1.0, "z": -6.0}, 1.0)  # x is fine, z is not: neither moves
     after = {n: s.position(sim.clock.now()) for n, s in sim.world.stages.items()}
     assert before == after
 
 
 def test_speed_above_axis_maximum_refused(rig):
-    with pytest.raises(SafetyError, match="speed"):
-        rig.jog("x", step=0.1, speed=50.0)
+    with pytest.raises(SafetyError, match="speed"), rig.motion("test") as m:
+        m.jog("x", step=0.1, speed=50.0)
 
 
 def test_press_follows_physics_and_force_limit_trips(rig, sim):
     rig.tare(10)
-    rig.move({"z": -1.0}, 2.0)
-    expected = sim.world.true_wrench()[2]  # the elastomer solver's own answer at this pose
-    assert 1.0 < expected < 10.0
-    assert rig.gauge.read_fresh().fz_N == pytest.approx(expected, abs=0.05)
-    rig.move({"z": -2.0}, 2.0)
-    assert rig.gauge.read_fresh().fz_N > expected  # deeper presses harder
-    with pytest.raises(ForceLimitExceeded, match="Fz") as err:
-        rig.move({"z": -4.9}, 5.0)  # past the 3 mm gel: the indenter would reach the backing
-    assert err.value.value > 40.0
-    z_now = rig.axes["z"].position()
-    assert not any(s.busy(sim.clock.now()) for s in sim.world.stages.values())  # all stopped
-    assert -4.9 < z_now < -2.0  # stopped before the target
-    rig.move({"z": 1.0}, 5.0)  # lifting z out of an overload is allowed; other moves are not
+    with rig.motion("test") as m:
+        m.move({"z": -1.0}, 2.0)
+        expected = sim.world.true_wrench()[2]  # the elastomer solver's own answer at this pose
+        assert 1.0 < expected < 10.0
+        assert rig.gauge.read_fresh().fz_N == pytest.approx(expected, abs=0.05)
+        m.move({"z": -2.0}, 2.0)
+        assert rig.gauge.read_fresh().fz_N > expected  # deeper presses harder
+        with pytest.raises(ForceLimitExceeded, match="Fz") as err:
+            m.move({"z": -4.9}, 5.0)  # past the 3 mm gel: the indenter would reach the backing
+        assert err.value.value > 40.0
+        z_now = rig.axes["z"].position()
+        assert not any(s.busy(sim.clock.now()) for s in sim.world.stages.values())  # all stopped
+        assert -4.9 < z_now < -2.0  # stopped before the target
+        m.move({"z": 1.0}, 5.0)  # lifting z out of an overload is allowed; other moves are not
     assert rig.gauge.read_fresh().fz_N == pytest.approx(0.0, abs=0.05)
 
 
 def test_over_the_limit_only_lifting_z_may_start(rig, sim):
     rig.tare(10)
-    rig.move({"z": -2.0}, 2.0)
-    fz = rig.gauge.read_fresh().fz_N
-    rig.guard.limits[2] = fz / 2  # now the present load is over the limit
-    with pytest.raises(ForceLimitExceeded):
-        rig.move({"x": 0.5}, 1.0)
-    with pytest.raises(ForceLimitExceeded):
-        rig.move({"z": -2.1}, 1.0)
-    rig.move({"z": 0.5}, 2.0)
+    with rig.motion("test") as m:
+        m.move({"z": -2.0}, 2.0)
+        fz = rig.gauge.read_fresh().fz_N
+        rig.guard.limits[2] = fz / 2  # now the present load is over the limit
+        with pytest.raises(ForceLimitExceeded):
+            m.move({"x": 0.5}, 1.0)
+        with pytest.raises(ForceLimitExceeded):
+            m.move({"z": -2.1}, 1.0)
+        m.move({"z": 0.5}, 2.0)
 
 
 def test_shear_and_twist_signs(rig):
     rig.tare(10)
-    rig.move({"z": -0.8}, 2.0)
-    fz = rig.gauge.read_fresh().fz_N
-    rig.move({"y": 0.5}, 1.0)
-    assert rig.gauge.read_fresh().fy_N > 0.2 * fz  # dragged along +y (partial slip: below μFz)
-    rig.move({"y": -0.5}, 1.0)
-    assert rig.gauge.read_fresh().fy_N < -0.2 * fz  # reverses with the direction
-    rig.move({"y": 0.0}, 1.0)
-    rig.move({"theta": 5.0}, 5.0)
-    assert rig.gauge.read_fresh().mz_Nmm > 0.1  # twist +θ: moment +Mz
+    with rig.motion("test") as m:
+        m.move({"z": -0.8}, 2.0)
+        fz = rig.gauge.read_fresh().fz_N
+        m.move({"y": 0.5}, 1.0)
+        assert rig.gauge.read_fresh().fy_N > 0.2 * fz  # dragged along +y (partial slip: below μFz)
+        m.move({"y": -0.5}, 1.0)
+        assert rig.gauge.read_fresh().fy_N < -0.2 * fz  # reverses with the direction
+        m.move({"y": 0.0}, 1.0)
+        m.move({"theta": 5.0}, 5.0)
+        assert rig.gauge.read_fresh().mz_Nmm > 0.1  # twist +θ: moment +Mz
 
 
 def test_no_gauge_no_motion(sim):
     with Rig.open(sim.config(), sim.clock, gauge=False) as rig:
         with pytest.raises(SafetyError, match="no force gauge"):
-            rig.jog("z", step=0.1)
+            with rig.motion("jog") as m:
+                m.jog("z", step=0.1)
         with pytest.raises(SafetyError, match="no force gauge"):
-            rig.home()
+            with rig.motion("home") as m:
+                m.home_axes()
 
 
 def on_poll(rig, n, action):
@@ -108,8 +113,8 @@ def on_poll(rig, n, action):
 
 def test_stall_mid_move_is_a_fault_and_stops_everything(rig, sim):
     on_poll(rig, 3, lambda: sim.world.stages["x"].stall(sim.clock.now()))
-    with pytest.raises(DeviceFault, match="FS"):
-        rig.move({"x": 5.0, "y": 5.0}, 2.0)
+    with pytest.raises(DeviceFault, match="FS"), rig.motion("test") as m:
+        m.move({"x": 5.0, "y": 5.0}, 2.0)
     assert not sim.world.stages["y"].busy(sim.clock.now())
     assert rig.axes["y"].position() < 5.0
 
@@ -119,8 +124,8 @@ def test_keyboard_interrupt_mid_move_stops_motion(rig, sim):
         raise KeyboardInterrupt
 
     on_poll(rig, 3, ctrl_c)
-    with pytest.raises(KeyboardInterrupt):
-        rig.move({"x": 10.0}, 2.0)
+    with pytest.raises(KeyboardInterrupt), rig.motion("test") as m:
+        m.move({"x": 10.0}, 2.0)
     assert not sim.world.stages["x"].busy(sim.clock.now())
     assert 0.0 < rig.axes["x"].position() < 10.0
 
@@ -131,7 +136,8 @@ def test_home_goes_z_first_and_references(sim):
         for name, axis in rig.axes.items():
             original = axis.home
             axis.home = (lambda n, f: (lambda: (order.append(n), f())))(name, original)
-        rig.home()
+        with rig.motion("home") as m:
+            m.home_axes()
         assert order[0] == "z"
         pos = rig.positions()
     assert pos["z"] == pytest.approx(20.0, abs=1e-4) and pos["x"] == pytest.approx(-12.5, abs=1e-4)
@@ -142,7 +148,8 @@ def test_faster_than_real_time_with_manual_clock():
     with SimulatedRig(clock) as sim, Rig.open(sim.config(), clock, gauge=True) as rig:
         rig.gauge.stop_stream()  # a manual clock emits no stream on its own: poll instead
         t0 = clock.now()
-        rig.move({"x": 2.0}, 0.5)  # 4 s of simulated motion, no real waiting
+        with rig.motion("test") as m:
+            m.move({"x": 2.0}, 0.5)  # 4 s of simulated motion, no real waiting
         assert clock.now() - t0 >= 4.0
         assert rig.axes["x"].position() == pytest.approx(2.0, abs=1e-4)
 

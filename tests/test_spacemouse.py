@@ -80,5 +80,6 @@ def test_pendant_jog_moves_the_simulated_axis():
 
     with SimulatedRig(ScaledClock(20.0)) as sim, Rig.open(sim.config(), sim.clock, axes=("z",)) as rig:
         z0 = rig.axes["z"].position()
-        jog_with_pendant(rig, "z", 0.1, None, pendant=SpaceMouse(OneReportPerPoll(reports)))
+        with rig.motion("jog") as m:
+            jog_with_pendant(m, "z", 0.1, None, pendant=SpaceMouse(OneReportPerPoll(reports)))
         assert rig.axes["z"].position() == pytest.approx(z0 + 0.1, abs=1e-4)  # pulled up: z rises one step

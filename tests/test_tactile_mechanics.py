@@ -1,17 +1,22 @@
 """Contact mechanics against closed forms, on stiff and extreme cases, and for consistency."""
 
+import logging
 import math
 
 import numpy as np
 import pytest
 
 from rig.sim.contact import Pose
+from rig.sim.tactile.backing import WINDOW_E_STAR_MPa
 from rig.sim.tactile.contact import SensorGeometry, TactileContact
 from rig.sim.tactile.elastomer import Elastomer, PhysicsInputError
 from rig.sim.tactile.indenters import INDENTERS, get_indenter
 from rig.sim.tactile.kernels import Kernels, cell_integrals, layer_factor
 from rig.sim.tactile.normal_contact import solve_normal
+from rig.sim.tactile.optics import OpticsSpec
+from rig.sim.tactile.scene import Scene
 from rig.sim.tactile.tangential_contact import solve_tangential
+from rig.sim.tactile.world_contact import ElastomerContact
 
 HALF_SPACE = Elastomer(E_MPa=1.0, nu=0.5, thickness_mm=math.inf, friction=0.5)
 
@@ -196,7 +201,6 @@ def test_twist_produces_mz_with_the_sign_of_the_twist():
     (lambda: Elastomer(nu=0.6), "Poisson"),
     (lambda: Elastomer(thickness_mm=0.0), "thickness"),
     (lambda: Elastomer(friction=-0.1), "friction"),
-    (lambda: TactileContact(get_indenter("sphere10mm"), GEL).solve(Pose(0, 0, -3.0, 0)), "rigid backing"),
     (lambda: TactileContact(get_indenter("sphere10mm"), GEL).solve(Pose(float("nan"), 0, -1.0, 0)), "finite"),
 ])
 def test_meaningless_inputs_are_clear_errors(make, words):
@@ -207,3 +211,84 @@ def test_meaningless_inputs_are_clear_errors(make, words):
 def test_unknown_indenter_names_the_choices():
     with pytest.raises(KeyError, match="sphere10mm"):
         get_indenter("teapot")
+
+
+# --- Consistency at the rigid window and of the solvers' reports ---
+
+
+@pytest.mark.parametrize("name", ["sphere10mm", "circle8mm"])
+def test_force_is_continuous_and_monotonic_through_the_gel_thickness(name):
+    """No jump at d = thickness: the window adds a steep but finite contact stiffness."""
+    contact = ElastomerContact(name)  # the gauge's model, as the simulated rig uses it
+    step_mm = 0.5e-3  # the gauge model's pose quantum
+    depths = GEL.thickness_mm + np.arange(-6, 21) * step_mm
+    results = [contact.solve(Pose(0.0, 0.0, -d, 0.0)) for d in depths]
+    fz = np.array([r.wrench[2] for r in results])
+    assert np.all(np.isfinite(fz)) and all(r.converged for r in results)
+    assert np.all(np.diff(fz) >= 0) and fz[-1] > fz[0]
+    gel_step_N = np.diff(fz[:7]).max()  # the gel's own rise per step, up to the thickness
+    for before, after, r in zip(fz, fz[1:], results[1:]):
+        # At most the gel's rise plus the window's stiffest response: under the whole contact.
+        window_N_per_mm = 2 * WINDOW_E_STAR_MPa * math.sqrt(r.normal.contact_area_mm2 / math.pi)
+        assert after - before <= 2 * gel_step_N + window_N_per_mm * step_mm, (name, before, after)
+    assert not any(r.on_backing for r, d in zip(results, depths) if d <= GEL.thickness_mm)
+    assert results[-1].on_backing and results[-1].backing.force_N > 0
+    at = 6  # depths[6] is the thickness
+    slope_before, slope_past = (fz[at] - fz[0]) / at, (fz[-1] - fz[at]) / (len(fz) - 1 - at)
+    assert slope_past > 10 * slope_before  # the window is far stiffer than the gel: the guard trips soon
+    assert fz[-1] < 1e3  # 10 µm past the gel: steep, not a saturated 10 kN
+
+
+def test_image_past_the_thickness_shows_the_fully_squeezed_gel():
+    scene = Scene("sphere10mm", "rgb", optics=OpticsSpec(kind="rgb", noise_std=0.0))
+    free = scene.frame(Pose(0, 0, 1.0, 0)).image.astype(float)
+    near = scene.frame(Pose(0, 0, -2.9, 0))
+    past = scene.frame(Pose(0, 0, -3.05, 0))
+    uz = past.contact.fields["uz"]
+    assert uz.max() == pytest.approx(GEL.thickness_mm, rel=1e-3)  # squeezed to the window, not beyond
+    assert past.contact.on_backing and past.wrench[2] > near.wrench[2]
+    change_near = np.abs(near.image - free).mean()
+    change_past = np.abs(past.image - free).mean()
+    assert change_past >= 0.9 * change_near > 1.0  # the pressed gel, not an untouched one
+
+
+def test_tight_tolerances_switch_to_float64_and_converge():
+    R, d, n = 5.0, 0.2, 128
+    _, a, _ = hertz(R, d)
+    X, Y, dx = grid(n, 3 * a)
+    s = solve_normal(Kernels(n, n, dx, HALF_SPACE), (X**2 + Y**2) / (2 * R), d, tol=1e-10)
+    assert s.converged and s.float64 and s.residual < 1e-10 and s.iterations < 250
+
+
+def test_a_tolerance_beyond_reach_stops_early_as_not_converged():
+    R, d, n = 5.0, 0.2, 64
+    _, a, _ = hertz(R, d)
+    X, Y, dx = grid(n, 2.6 * a)
+    k = Kernels(n, n, dx, HALF_SPACE)
+    normal = solve_normal(k, (X**2 + Y**2) / (2 * R), d, tol=1e-30)
+    assert not normal.converged and normal.float64 and normal.iterations < 500  # stalled, not max_iter
+    ordinary = solve_normal(k, (X**2 + Y**2) / (2 * R), d, tol=1e-6)
+    assert ordinary.converged and not ordinary.float64
+    t = solve_tangential(k, ordinary.pressure_MPa, X, Y, mu=0.5, shift_mm=(0.01, 0.0), tol=1e-30)
+    assert not t.converged and t.float64 and t.iterations < 2000
+
+
+def test_unconverged_solves_are_counted_and_warned_once(caplog):
+    contact = ElastomerContact("sphere10mm", tol=1e-30)
+    with caplog.at_level(logging.WARNING, logger="rig.sim.tactile.world_contact"):
+        results = [contact.solve(Pose(0.0, 0.0, -d, 0.0)) for d in (0.3, 0.5, 0.7)]
+    assert [r.converged for r in results] == [False] * 3
+    assert all(0 < r.normal_iterations < 500 and r.normal_residual > 0 for r in results)
+    assert contact.solver_warnings == 3
+    warnings = [rec for rec in caplog.records if rec.levelno == logging.WARNING]
+    assert len(warnings) == 1 and "did not converge" in warnings[0].getMessage()
+
+
+def test_ordinary_solves_converge_and_report():
+    contact = ElastomerContact("sphere10mm")
+    r = contact.solve(Pose(0.2, 0.0, -0.8, 3.0))
+    r = contact.solve(Pose(0.4, 0.0, -0.8, 3.0))  # sheared since contact began: a tangential solve
+    assert r.converged and r.tangential is not None
+    assert r.normal_iterations > 0 and r.tangential_iterations > 0
+    assert r.normal_residual < contact.solver.tol and r.tangential_residual < contact.solver.tangential_tol
+    assert contact.solver_warnings == 0

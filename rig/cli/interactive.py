@@ -10,7 +10,9 @@ from rig.errors import SafetyError
 HELP = "keys: + / up = step up, - / down = step down, ] = step x10, [ = step /10, q = quit"
 
 
-def jog_with_keys(rig, axis: str, step: float, speed: float | None, stream=None) -> None:
+def jog_with_keys(m, axis: str, step: float, speed: float | None, stream=None) -> None:
+    """Jog inside the motion session ``m`` (rig.motion) until q, Esc or the end of input."""
+    rig = m.rig
     unit = rig.config.axes[axis].unit
     typer.echo(HELP)
     typer.echo(f"{axis} = {rig.axes[axis].position():.4f} {unit}, step {step:g} {unit}")
@@ -26,17 +28,19 @@ def jog_with_keys(rig, axis: str, step: float, speed: float | None, stream=None)
             typer.echo(HELP)
             continue
         try:
-            pos = rig.jog(axis, step=direction * step, speed=speed)
+            pos = m.jog(axis, step=direction * step, speed=speed)
         except SafetyError as exc:  # a refused step is reported and jogging goes on
             typer.secho(str(exc), fg=typer.colors.YELLOW)
             continue
         typer.echo(f"{axis} = {pos:.4f} {unit}")
 
 
-def jog_with_pendant(rig, axis: str, step: float, speed: float | None, pendant=None) -> None:
-    """Each poll with the cap deflected steps the axis by ``step`` × deflection; button 1 quits."""
+def jog_with_pendant(m, axis: str, step: float, speed: float | None, pendant=None) -> None:
+    """Inside the motion session ``m``, each poll with the cap deflected steps the axis by
+    ``step`` × deflection; button 1 quits."""
     from rig.drivers.spacemouse import deflection, open_spacemouse
 
+    rig = m.rig
     cfg = rig.config.pendant
     pendant = pendant or open_spacemouse(cfg.vendor_id if cfg else None, cfg.product_id if cfg else None)
     deadband = cfg.deadband if cfg else 0.15
@@ -50,7 +54,7 @@ def jog_with_pendant(rig, axis: str, step: float, speed: float | None, pendant=N
             d = deflection(state, axis, deadband)
             if d:
                 try:
-                    pos = rig.jog(axis, step=d * step, speed=speed)
+                    pos = m.jog(axis, step=d * step, speed=speed)
                 except SafetyError as exc:
                     typer.secho(str(exc), fg=typer.colors.YELLOW)
                     continue

@@ -8,10 +8,15 @@ from __future__ import annotations
 
 import enum
 import functools
+import logging
+import math
 from pathlib import Path
 from typing import Annotated, Optional
 
 import typer
+
+from rig.cli.options import number
+from rig.config import MAX_FORCE_LIMIT_N, MAX_SPEED, TRAVEL_LIMIT
 
 app = typer.Typer(help="Control the tactile-sensing rig: stages, force gauge, camera. "
                        "Every command takes --config FILE, or --sim for the built-in simulated rig.",
@@ -43,6 +48,7 @@ class Transport(str, enum.Enum):
 class GaugeKind(str, enum.Enum):
     ft300 = "ft300"
     m8128 = "m8128"
+    ati_netft = "ati_netft"
 
 
 def _fail(message: str, code: int = 1):
@@ -51,23 +57,40 @@ def _fail(message: str, code: int = 1):
 
 
 def friendly_errors(fn):
-    """Rig errors become one red line and exit 1; Ctrl-C says motion was stopped."""
+    """Every failure becomes one red line and a non-zero exit, never a traceback: rig
+    errors and bad input exit 1; a signal exits 128 + its number (Ctrl-C 130, SIGTERM
+    143, SIGHUP 129) after the motion session stopped everything."""
 
     @functools.wraps(fn)
     def wrapper(*args, **kwargs):
         from rig.errors import RigError
+        from rig.motion import MotionInterrupted
 
         try:
             return fn(*args, **kwargs)
+        except (typer.Exit, typer.Abort, typer.TyperException):
+            raise  # typer's own ways out (a command's exit code, a bad option)
         except RigError as exc:
             _fail(str(exc))
         except (FileNotFoundError, ValueError) as exc:
             _fail(str(exc))
+        except MotionInterrupted as exc:
+            typer.secho(f"interrupted ({exc.signal_name}): motion stopped, devices closed", fg=typer.colors.YELLOW,
+                        err=True)
+            raise typer.Exit(exc.exit_code)
         except KeyboardInterrupt:
             typer.secho("interrupted: motion stopped, devices closed", fg=typer.colors.YELLOW, err=True)
             raise typer.Exit(130)
+        except Exception as exc:  # a driver's or the OS's error: still one line, naming its type
+            logging.getLogger("rig").debug("unexpected error", exc_info=True)
+            _fail(f"{type(exc).__name__}: {exc}")
 
     return wrapper
+
+
+def _say(text: str) -> None:
+    """Progress on stderr (stdout keeps only the result): a long move shows it started."""
+    typer.echo(f"{text} (Ctrl-C stops)", err=True)
 
 
 @app.command()
@@ -85,13 +108,16 @@ def status(config: ConfigOpt = None, sim: SimOpt = False):
 @friendly_errors
 def jog(
     axis: Annotated[AxisName, typer.Option("--axis", "-a", help="Axis to move: x, y, z (mm) or theta (deg).")],
-    step: Annotated[Optional[float], typer.Option(help="Move by this much (mm, or deg for theta) and exit (default: interactive jogging).")] = None,
-    to: Annotated[Optional[float], typer.Option(help="Move to this absolute position (mm or deg) and exit (default: interactive jogging).")] = None,
+    step: Annotated[Optional[float], typer.Option(help="Move by this much (mm, or deg for theta) and exit (default: interactive jogging).",
+                                                  callback=number(low=-TRAVEL_LIMIT, high=TRAVEL_LIMIT))] = None,
+    to: Annotated[Optional[float], typer.Option(help="Move to this absolute position (mm or deg) and exit (default: interactive jogging).",
+                                                callback=number(low=-TRAVEL_LIMIT, high=TRAVEL_LIMIT))] = None,
     speed: Annotated[Optional[float], typer.Option(
-        help="Speed in mm/s (deg/s for theta); default: the axis's jog_speed from the config.", min=0.0)] = None,
+        help="Speed in mm/s (deg/s for theta); default: the axis's jog_speed from the config.",
+        callback=number(positive=True, high=MAX_SPEED))] = None,
     key_step: Annotated[float, typer.Option(
         help="Interactive mode: initial step per keypress (mm or deg); [ and ] divide/multiply it by 10.",
-        min=0.0001)] = 0.1,
+        min=0.0001, callback=number(positive=True, high=TRAVEL_LIMIT))] = 0.1,
     pendant: Annotated[bool, typer.Option(help="Interactive mode: jog with the HID pendant (SpaceMouse).")] = False,
     config: ConfigOpt = None,
     sim: SimOpt = False,
@@ -104,15 +130,17 @@ def jog(
     with open_rig(config, sim, axes=(axis.value,)) as rig:
         unit = rig.config.axes[axis.value].unit
         if step is not None or to is not None:
-            final = rig.jog(axis.value, step=step, to=to, speed=speed)
+            with rig.motion("jog", on_start=_say) as m:
+                final = m.jog(axis.value, step=step, to=to, speed=speed)
             typer.echo(f"{axis.value} = {final:.4f} {unit}")
             return
         from rig.cli.interactive import jog_with_keys, jog_with_pendant
 
-        if pendant:
-            jog_with_pendant(rig, axis.value, key_step, speed)
-        else:
-            jog_with_keys(rig, axis.value, key_step, speed)
+        with rig.motion("jog") as m:
+            if pendant:
+                jog_with_pendant(m, axis.value, key_step, speed)
+            else:
+                jog_with_keys(m, axis.value, key_step, speed)
 
 
 @app.command()
@@ -128,7 +156,8 @@ def home(
 
     names = tuple(a.value for a in axis) if axis else None
     with open_rig(config, sim, axes=names) as rig:
-        rig.home(names)
+        with rig.motion("home", on_start=_say) as m:
+            m.home_axes(names)
         for name, pos in rig.positions().items():
             typer.echo(f"{name} homed, at {pos:.4f} {rig.config.axes[name].unit}")
 
@@ -154,10 +183,12 @@ def zero(
 @app.command("find-contact")
 @friendly_errors
 def find_contact_cmd(
-    threshold: Annotated[float, typer.Option("--threshold-n", help="|Fz| that counts as touching, N.", min=0.001)] = 0.05,
+    threshold: Annotated[float, typer.Option("--threshold-n", help="|Fz| that counts as touching, N.", min=0.001,
+                                             callback=number(positive=True, high=MAX_FORCE_LIMIT_N))] = 0.05,
     speed: Annotated[float, typer.Option(help="Descent speed of the first pass, mm/s (the second is 10x slower).",
-                                         min=0.001)] = 0.5,
-    max_travel: Annotated[float, typer.Option(help="How far down to search from the present z, mm.", min=0.01)] = 10.0,
+                                         min=0.001, callback=number(positive=True, high=MAX_SPEED))] = 0.5,
+    max_travel: Annotated[float, typer.Option(help="How far down to search from the present z, mm.", min=0.01,
+                                              callback=number(positive=True, high=TRAVEL_LIMIT))] = 10.0,
     config: ConfigOpt = None,
     sim: SimOpt = False,
 ):
@@ -166,7 +197,7 @@ def find_contact_cmd(
     from rig.contact_search import find_contact
 
     with open_rig(config, sim, axes=("z",)) as rig:
-        found = find_contact(rig, threshold_N=threshold, speed_mm_s=speed, max_travel_mm=max_travel)
+        found = find_contact(rig, threshold_N=threshold, speed_mm_s=speed, max_travel_mm=max_travel, on_start=_say)
     typer.echo(f"contact at z = {found.z_mm:.4f} mm (|Fz| = {abs(found.fz_N):.3f} N, resolution "
                f"{found.resolution_mm * 1000:.1f} µm); z lifted clear")
     typer.echo(f"use: rig run-protocol NAME --origin X,Y,{found.z_mm:.4f},THETA")
@@ -232,8 +263,8 @@ def _origin(value: str) -> tuple[float, float, float, float]:
         parts = tuple(float(v) for v in value.split(","))
     except ValueError:
         raise typer.BadParameter(f"expected four numbers x,y,z,theta, got {value!r}") from None
-    if len(parts) != 4:
-        raise typer.BadParameter(f"expected four numbers x,y,z,theta, got {value!r}")
+    if len(parts) != 4 or not all(math.isfinite(p) for p in parts):
+        raise typer.BadParameter(f"'--origin' expects four finite numbers x,y,z,theta, got {value!r}")
     return parts
 
 

@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
-import signal
+import os
 from pathlib import Path
 
 import typer
 from rich.console import Console
 from rich.table import Table
+
+from rig.errors import ConfigError
 
 console = Console()
 
@@ -58,8 +60,23 @@ def show_protocol(name: str, frame_px: int = 256, settings: list[str] | None = N
     console.print(f"disk: about {gb:.2f} GB at {frame_px}x{frame_px} px (uncompressed frames)")
 
 
-def _terminate_as_interrupt(*_):
-    raise KeyboardInterrupt
+def check_new_run_path(out: Path) -> None:
+    """``--out`` must name a new file in an existing, writable directory. Checked before any
+    device opens, so a refused run never moves a stage and never touches an existing file;
+    ConfigError names the path and says what was expected."""
+    if os.path.lexists(out):  # lexists: a dangling link would be written through too
+        raise ConfigError(str(out), "--out", "exists; a run file is never overwritten: pass another --out, "
+                                             f"or --resume {out}")
+    directory = out.absolute().parent
+    try:
+        exists = directory.is_dir()
+    except OSError as exc:  # a parent we may not search
+        raise ConfigError(str(out), "--out", f"cannot look into {directory}: {exc.strerror}") from None
+    if not exists:
+        raise ConfigError(str(out), "--out", f"directory {directory} does not exist; create it first")
+    # effective ids: the ones the file is created with (they differ under sudo -u / setuid)
+    if not os.access(directory, os.W_OK | os.X_OK, effective_ids=os.access in os.supports_effective_ids):
+        raise ConfigError(str(out), "--out", f"directory {directory} is not writable")
 
 
 def run_protocol(name: str, *, out: Path | None, resume: Path | None, dry_run: bool, config: Path | None,
@@ -71,12 +88,20 @@ def run_protocol(name: str, *, out: Path | None, resume: Path | None, dry_run: b
     protocol = load_protocol(name, settings)
     plan = Plan.of(protocol)
     origin_map = dict(zip(AXES, origin))
+    if resume is not None and out is not None:
+        raise ConfigError(str(out), "--out", f"give --out for a new run or --resume {resume}, not both")
+    explicit_out = out is not None
     if resume is None and out is None:  # a new file every run: a second run never collides
         import datetime as dt
 
         out = Path("runs") / f"{protocol.name}-{dt.datetime.now().strftime('%Y%m%d-%H%M%S')}.h5"
         if not dry_run:
-            out.parent.mkdir(parents=True, exist_ok=True)
+            try:
+                out.parent.mkdir(parents=True, exist_ok=True)
+            except OSError as exc:
+                raise ConfigError(str(out), "--out", f"cannot create {out.parent}: {exc.strerror}") from None
+    if resume is None and (explicit_out or not dry_run):
+        check_new_run_path(out)  # before any device opens: a refused --out moves nothing
     path = resume or out
     if dry_run:
         if sim:
@@ -94,23 +119,24 @@ def run_protocol(name: str, *, out: Path | None, resume: Path | None, dry_run: b
         console.print(f"duration {fmt_duration(plan.total_duration_s)}, {plan.frame_count} frames, "
                       f"about {disk_bytes(plan, (256, 256, 3)) / 1e9:.2f} GB at 256x256")
         return
-    if resume is None and path.exists():
-        raise FileExistsError(f"{path} exists: pass another --out, or --resume {path}")
-    previous = signal.signal(signal.SIGTERM, _terminate_as_interrupt)
-    try:
+    from rig.motion import SignalsAsExceptions
+
+    # SIGINT, SIGTERM and SIGHUP become MotionInterrupted for the whole command: while the
+    # stages move the run's motion session stops and lifts them and the file records which
+    # signal; before or after, the rig still closes (a gauge left streaming breaks later commands).
+    with SignalsAsExceptions():
         if sim:
             _run_sim(protocol, plan, path, resume is not None, origin_map)
         else:
             _run_hw(protocol, plan, path, resume is not None, origin_map, config)
-    finally:
-        signal.signal(signal.SIGTERM, previous)
 
 
 def _run_sim(protocol, plan, path, resume, origin) -> None:
     from acquisition.simulated import monitor_interval_s, simulated_rig_for
 
-    with simulated_rig_for(protocol) as (rig, _, header):
-        _execute(rig, plan, path, resume, origin, header, monitor_interval_s=monitor_interval_s(protocol))
+    with simulated_rig_for(protocol) as (rig, simulated, header):
+        _execute(rig, plan, path, resume, origin, header, monitor_interval_s=monitor_interval_s(protocol),
+                 solver_warnings=lambda: simulated.world.contact.solver_warnings)
 
 
 def _run_hw(protocol, plan, path, resume, origin, config) -> None:
@@ -125,7 +151,7 @@ def _run_hw(protocol, plan, path, resume, origin, config) -> None:
         _execute(rig, plan, path, resume, origin, header, monitor_interval_s=None)
 
 
-def _execute(rig, plan, path, resume, origin, header, monitor_interval_s) -> None:
+def _execute(rig, plan, path, resume, origin, header, monitor_interval_s, solver_warnings=None) -> None:
     from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 
     from acquisition.executor import Acquisition
@@ -140,11 +166,15 @@ def _execute(rig, plan, path, resume, origin, header, monitor_interval_s) -> Non
                        wrench=f"Fz {p.wrench[2]:6.2f} N  Fx {p.wrench[0]:+5.2f}  Fy {p.wrench[1]:+5.2f}  "
                               f"Mz {p.wrench[5]:+6.2f} N·mm")
 
-        acq = Acquisition(rig, plan, origin=origin, monitor_interval_s=monitor_interval_s, progress=on_progress)
+        acq = Acquisition(rig, plan, origin=origin, monitor_interval_s=monitor_interval_s, progress=on_progress,
+                          solver_warnings=solver_warnings)
         result = acq.run(path, resume=resume, header=header)
     colour = {"complete": "green", "interrupted": "yellow"}.get(result.status, "red")
     console.print(f"[{colour}]{result.status}[/]: {result.frames}/{plan.frame_count} frames in {path}"
                   + (f" — {result.reason}" if result.reason else ""))
+    if result.solver_warnings:
+        console.print(f"[yellow]warning[/]: {result.solver_warnings} contact solves of the simulated sensor stopped "
+                      "short of their tolerance (recorded in the run file as run/sim_solver_warnings)")
     if result.skews_s:
         console.print(f"wrench–frame skew: median {1e3 * sorted(result.skews_s)[len(result.skews_s) // 2]:.1f} ms, "
                       f"max {1e3 * max(result.skews_s):.1f} ms (rig clock)")

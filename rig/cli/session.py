@@ -26,18 +26,25 @@ def resolve_config_path(config: Path | None) -> Path:
 @contextlib.contextmanager
 def open_rig(config: Path | None, sim: bool, *, axes: tuple[str, ...] | None = None, gauge: bool = True,
              camera: bool = False):
-    """Yield an open ``Rig`` with only the devices asked for; closes everything on exit."""
+    """Yield an open ``Rig`` with only the devices asked for; closes everything on exit.
+
+    SIGTERM and SIGHUP (and SIGINT) raise MotionInterrupted for the whole command, not
+    only while something moves, so that a signal while the rig opens or closes still
+    runs the closing: a gauge left streaming would break every later command.
+    """
     from rig.config import load_config
+    from rig.motion import SignalsAsExceptions
     from rig.rig import Rig
 
-    if sim:
-        from rig.sim.rig_sim import SimulatedRig
+    with SignalsAsExceptions():
+        if sim:
+            from rig.sim.rig_sim import SimulatedRig
 
-        with SimulatedRig() as simulated:
-            with Rig.open(simulated.config(), simulated.clock, axes=axes, gauge=gauge, camera=camera,
-                          sim=simulated) as rig:
+            with SimulatedRig() as simulated:
+                with Rig.open(simulated.config(), simulated.clock, axes=axes, gauge=gauge, camera=camera,
+                              sim=simulated) as rig:
+                    yield rig
+        else:
+            cfg = load_config(resolve_config_path(config))
+            with Rig.open(cfg, axes=axes, gauge=gauge, camera=camera) as rig:
                 yield rig
-    else:
-        cfg = load_config(resolve_config_path(config))
-        with Rig.open(cfg, axes=axes, gauge=gauge, camera=camera) as rig:
-            yield rig

@@ -75,25 +75,25 @@ class FT300(GaugeBase):
 
     def _stream_open(self):
         self.bus.write_registers(self.device_id, REG_STREAM, [STREAM_START], device=self.label)
-        port = self.bus.raw_port()
-        self._saved_timeout, port.timeout = port.timeout, STREAM_POLL_S
+        link = self.bus.link
+        self._saved_timeout, link.port.timeout = link.port.timeout, STREAM_POLL_S
 
         def read_chunk() -> bytes:
+            # Through the link: bytes it read past the start-stream echo come first.
             try:
-                waiting = port.in_waiting
-                return port.read(waiting if waiting else 1)
-            except PORT_ERRORS as exc:
+                return link.read_available()
+            except DeviceDisconnected as exc:
                 raise DeviceDisconnected(self.label, "stream read", None, f"stream port failed: {exc}") from exc
 
         return read_chunk
 
     def _stream_close(self) -> None:
-        port = self.bus.raw_port()
+        link = self.bus.link
         with self.bus.lock:
+            link.write(STOP_BYTES, "stop stream", device=self.label)
             try:
-                port.write(STOP_BYTES)
-                port.flush()
-                drain(port)  # frames still in flight
-                port.timeout = self._saved_timeout
+                drain(link.port)  # frames still in flight
+                link.port.timeout = self._saved_timeout
             except PORT_ERRORS as exc:
                 raise DeviceDisconnected(self.label, "stop stream", None, str(exc)) from exc
+            link.discard_input(device=self.label)

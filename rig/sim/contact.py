@@ -48,6 +48,11 @@ class SpringContact:
         self._anchor: tuple[float, float, float] | None = None
         self._lock = threading.Lock()
 
+    @property
+    def solver_warnings(self) -> int:
+        """Unconverged solves, as ``ElastomerContact`` counts them: none, this is closed form."""
+        return 0
+
     def wrench(self, pose: Pose) -> np.ndarray:
         d = pose.depth_mm
         with self._lock:

@@ -2,7 +2,9 @@
 
 The device models never know about faults: every reply (and every streamed frame)
 passes through ``FaultInjector.apply``, which may drop it, garble a byte, cut it short
-or hold it back. Tests arm faults by count ("garble the next reply").
+or hold it back (in simulated seconds: a device answering late). ``stall_next`` instead
+holds the simulator thread itself back in real time, as a CPU-starved thread would.
+Tests arm faults by count ("garble the next reply").
 """
 
 from __future__ import annotations
@@ -18,6 +20,7 @@ class FaultCounts:
     garbled: int = 0
     truncated: int = 0
     delayed: int = 0
+    stalled: int = 0
 
 
 class FaultInjector:
@@ -29,6 +32,8 @@ class FaultInjector:
         self._truncate = 0
         self._delay = 0
         self._delay_s = 0.0
+        self._stall = 0
+        self._stall_s = 0.0
         self.counts = FaultCounts()
 
     def drop_next(self, n: int = 1) -> None:
@@ -44,17 +49,34 @@ class FaultInjector:
             self._truncate += n
 
     def delay_next(self, n: int, delay_s: float) -> None:
-        """Hold the next ``n`` replies back by ``delay_s`` seconds of real time."""
+        """Hold the next ``n`` replies back by ``delay_s`` seconds of the simulator's clock
+        (real seconds on a real-time clock): the device answers late."""
         with self._lock:
             self._delay += n
             self._delay_s = delay_s
 
+    def stall_next(self, n: int, real_s: float) -> None:
+        """Before handling each of the next ``n`` inputs, the simulator thread waits
+        ``real_s`` real seconds while no simulated time passes (a machine under load)."""
+        with self._lock:
+            self._stall += n
+            self._stall_s = real_s
+
+    def take_stall(self) -> float:
+        """Real seconds the simulator thread should stall now (0 when none is armed)."""
+        with self._lock:
+            if not self._stall:
+                return 0.0
+            self._stall -= 1
+            self.counts.stalled += 1
+            return self._stall_s
+
     def clear(self) -> None:
         with self._lock:
-            self._drop = self._garble = self._truncate = self._delay = 0
+            self._drop = self._garble = self._truncate = self._delay = self._stall = 0
 
     def apply(self, frame: bytes) -> tuple[bytes | None, float]:
-        """(bytes to send or None, real-time delay in seconds) for one outgoing frame."""
+        """(bytes to send or None, delay in clock seconds) for one outgoing frame."""
         with self._lock:
             if self._drop:
                 self._drop -= 1

@@ -1,7 +1,13 @@
 """Serve a simulated device's bytes on a pty or a loopback TCP socket, in a thread.
 
 The driver under test opens the pty's path (or ``socket://127.0.0.1:PORT``) exactly
-as it would open ``/dev/ttyUSB0``; pyserial and pymodbus run unchanged.
+as it would open ``/dev/ttyUSB0``; pyserial runs unchanged.
+
+Replies leave at simulated time (a fault's delay is simulated seconds). The server
+registers its URL as an in-process peer (``rig.transport.peer``) so that a driver's
+reply timeout counts simulated time and cannot fire because this thread was starved
+of CPU (issue 12, finding 7). os.read/os.write/select are retried on EINTR by Python
+itself (PEP 475); nothing here calls tcdrain.
 """
 
 from __future__ import annotations
@@ -13,12 +19,17 @@ import pty
 import select
 import socket
 import threading
-import time
 import tty
 from typing import Protocol
 
 from rig.clock import Clock
 from rig.sim.faults import FaultInjector
+from rig.transport import peer as peers
+
+# Real seconds a simulator may take to answer a request before a driver calls it dead.
+# Far beyond any CPU starvation seen (finding 7: a loaded 2-core machine stalled the
+# thread past 0.3 s), and still a bounded wait for a hung simulator.
+STALL_LIMIT_S = 10.0
 
 
 class DeviceModel(Protocol):
@@ -57,13 +68,16 @@ class SimServer:
         self.name = name
         self.transport = transport
         self._stop = threading.Event()
-        self._pending: list[tuple[float, int, bytes]] = []  # (real send time, seq, data)
+        self._pending: list[tuple[float, int, bytes, float]] = []  # (clock send time, seq, data, latency s)
         self._seq = itertools.count()
         self._conn: socket.socket | None = None
         self._lock = threading.Lock()
         self._model_lock = threading.RLock()  # the loop thread and clock pumps share the model
         self.bytes_in = 0
         self.bytes_out = 0
+        self._processed_in = 0  # bytes fed to the model and answered (replies queued)
+        self.stall_limit_s = STALL_LIMIT_S
+        self._discrete = hasattr(clock, "add_listener")  # time moves only when advanced
         if transport == "pty":
             self._master, self._slave = pty.openpty()
             tty.setraw(self._slave)
@@ -78,6 +92,7 @@ class SimServer:
             self._master = self._slave = -1
         self._thread = threading.Thread(target=self._run, name=f"sim-{name}", daemon=True)
         self._thread.start()
+        peers.register(self.url, self)
         if hasattr(clock, "add_listener"):
             clock.add_listener(self.pump)
 
@@ -92,7 +107,7 @@ class SimServer:
             interval = self.model.tick_interval_s()
             timeout = 0.05 if interval is None else interval
             if self._pending:
-                timeout = min(timeout, max(0.0, self._pending[0][0] - time.monotonic()))
+                timeout = min(timeout, self._real_s_until(self._pending[0][0]))
             fd = self._input_fd()
             try:
                 readable, _, _ = select.select([fd], [], [], timeout)
@@ -112,9 +127,19 @@ class SimServer:
                     self._conn = None
                     continue
                 self.bytes_in += len(data)
+                stall_s = self.faults.take_stall()
+                if stall_s:
+                    self._stop.wait(stall_s)  # a thread starved of CPU: real time, no simulated time
                 with self._model_lock:
                     self._queue(self.model.feed(data, self.clock.now()))
+                    self._processed_in += len(data)
             self.pump()
+
+    def _real_s_until(self, t_clock: float) -> float:
+        """Real seconds until clock time ``t_clock`` (a discrete clock is pumped on advance)."""
+        if self._discrete:
+            return 0.05
+        return max(0.0, (t_clock - self.clock.now()) / getattr(self.clock, "factor", 1.0))
 
     def pump(self) -> None:
         """Emit what the model has due now (stream frames), under the model lock."""
@@ -125,14 +150,14 @@ class SimServer:
             self._flush_due()
 
     def _queue(self, frames: list[bytes]) -> None:
-        now = time.monotonic()
+        now = self.clock.now()
         for frame in frames:
             out, delay = self.faults.apply(frame)
             if out:
-                heapq.heappush(self._pending, (now + delay, next(self._seq), out))
+                heapq.heappush(self._pending, (now + delay, next(self._seq), out, delay))
 
     def _flush_due(self) -> None:
-        now = time.monotonic()
+        now = self.clock.now()
         chunks = []
         while self._pending and self._pending[0][0] <= now:
             chunks.append(heapq.heappop(self._pending)[2])
@@ -144,17 +169,51 @@ class SimServer:
                 os.write(self._master, data)
             elif self._conn is not None:
                 self._conn.sendall(data)
+            else:
+                return  # no host connected: the bytes are lost, not sent
             self.bytes_out += len(data)
         except OSError:
             pass  # the host end went away; the next read notices
 
+    # -- the in-process peer (rig.transport.peer) ------------------------------
+    @property
+    def alive(self) -> bool:
+        return self._thread.is_alive() and not self._stop.is_set()
+
+    def counters(self) -> tuple[int, int]:
+        return self._processed_in, self.bytes_out
+
+    def reply_outlook(self, base: tuple[int, int], written: int, read: int, timeout_s: float) -> peers.Outlook:
+        # Never wait for the model lock: a simulator stuck in a model call is "reading",
+        # and the driver's stall limit (real time) decides when it is dead.
+        if not self._model_lock.acquire(timeout=0.01):
+            return peers.Outlook.READING
+        try:
+            if self._processed_in - base[0] < written:
+                return peers.Outlook.READING
+            if self.bytes_out - base[1] > read:
+                return peers.Outlook.COMING  # on the wire, not read yet
+            in_time = [due for due, _, _, latency in self._pending if latency <= timeout_s]
+            now = self.clock.now()
+        finally:
+            self._model_lock.release()
+        if in_time:
+            if self._discrete and min(in_time) > now:
+                self.clock.advance(min(in_time) - now)  # emits it, through pump
+            return peers.Outlook.COMING
+        if self._discrete:
+            self.clock.advance(timeout_s)  # waiting out a device timeout takes simulated time
+        return peers.Outlook.SILENT
+
     # -- control --------------------------------------------------------------
     def disconnect(self) -> None:
         """The device vanishes: its port closes under the driver."""
+        peers.unregister(self.url, self)
         self._stop.set()
         self._close_fds()
 
     def close(self) -> None:
+        peers.unregister(self.url, self)
         self._stop.set()
         self._thread.join(timeout=1.0)
         self._close_fds()

@@ -1,7 +1,8 @@
-"""A Modbus RTU server for simulated devices, written apart from pymodbus.
+"""A Modbus RTU server for simulated devices, written apart from the client.
 
-The drivers use pymodbus as the client; the simulators parse and build frames with
-this independent implementation, so a test exercises two codecs against each other.
+The drivers frame requests with ``rig.transport.modbus_frames``; the simulators parse
+and build frames with this separate implementation, and the exchange tests pin the
+bytes to the manuals, so a test exercises two codecs against each other.
 Like a real RS-485 slave, a frame with a bad CRC or for another device id gets no
 answer at all.
 """

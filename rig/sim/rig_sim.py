@@ -24,6 +24,10 @@ THETA_PULSES_PER_REV = 10000
 THETA_DEG_PER_REV = 4.0  # a 90:1 worm rotary stage
 ZABER_DEVICES = {"x": 1, "y": 2, "z": 3}
 THETA_DEVICE_ID = 1
+# Reply timeout written into the simulated rig's config. In-process (--sim) it counts
+# simulated time (rig/transport/peer.py), so machine load cannot trip it; a client of
+# `rig sim serve` in another process waits this long in real time, as on hardware.
+DEVICE_TIMEOUT_S = 0.3
 
 
 def rig_contact(indenter: str):
@@ -39,8 +43,8 @@ class SimulatedRig:
     def __init__(self, clock: Clock | None = None, *, transport: str = "pty", gauge: str = "ft300",
                  spec: WorldSpec | None = None, seed: int = 0, indenter: str = "sphere10mm",
                  sensor_kind: str = "rgb", contact=None, gauge_rate_hz: float = 100.0):
-        if gauge not in ("ft300", "m8128"):
-            raise ValueError(f"simulated gauge must be 'ft300' or 'm8128', got {gauge!r}")
+        if gauge not in ("ft300", "m8128", "ati_netft"):
+            raise ValueError(f"simulated gauge must be 'ft300', 'm8128' or 'ati_netft', got {gauge!r}")
         self.clock = clock or SystemClock()
         if contact is None:
             contact = rig_contact(indenter)
@@ -65,10 +69,16 @@ class SimulatedRig:
             self.servers["stages"] = SimServer(self.zaber, self.clock, transport=transport, name="zaber")
             self.servers["theta"] = SimServer(RtuServer({THETA_DEVICE_ID: self.theta}), self.clock,
                                               transport=transport, name="pr-drive")
-            model = (Ft300Sim(self.world, rate_hz=gauge_rate_hz) if gauge == "ft300"
-                     else M8128Sim(self.world, rate_hz=gauge_rate_hz))
-            model.schedule.report_on_advance = self.discrete_time
-            self.servers["gauge"] = SimServer(model, self.clock, transport=transport, name=gauge)
+            self.netft = None
+            if gauge == "ati_netft":  # UDP + HTTP on loopback, not a byte-stream server
+                from rig.sim.ati_netft_sim import AtiNetFtSim
+
+                self.netft = AtiNetFtSim(self.world, rate_hz=max(gauge_rate_hz, 1000.0))
+            else:
+                model = (Ft300Sim(self.world, rate_hz=gauge_rate_hz) if gauge == "ft300"
+                         else M8128Sim(self.world, rate_hz=gauge_rate_hz))
+                model.schedule.report_on_advance = self.discrete_time
+                self.servers["gauge"] = SimServer(model, self.clock, transport=transport, name=gauge)
         except Exception:
             self.close()
             raise
@@ -85,7 +95,7 @@ class SimulatedRig:
                 f'[axes.{axis}]', 'driver = "zaber"', f'port = "{self.servers["stages"].url}"',
                 f'device = {number}', f'scale = {scale!r}', f'offset = {-g.sign * g.origin * 1.0!r}',
                 f'travel = [{ends[0]!r}, {ends[1]!r}]', f'max_speed = {s.max_speed!r}', 'jog_speed = 1.0',
-                'timeout_s = 0.3', '',
+                f'timeout_s = {DEVICE_TIMEOUT_S!r}', '',
             ]
         g, s = geo["theta"], stage_specs["theta"]
         lines += [
@@ -93,11 +103,15 @@ class SimulatedRig:
             f'device = {THETA_DEVICE_ID}', f'pulses_per_rev = {THETA_PULSES_PER_REV}',
             f'travel_per_rev = {THETA_DEG_PER_REV!r}', f'offset = {-g.origin!r}',
             f'travel = [{s.travel[0] - g.origin!r}, {s.travel[1] - g.origin!r}]',
-            f'max_speed = {s.max_speed!r}', 'jog_speed = 5.0', 'timeout_s = 0.3', '',
+            f'max_speed = {s.max_speed!r}', 'jog_speed = 5.0', f'timeout_s = {DEVICE_TIMEOUT_S!r}', '',
         ]
         if self.gauge_kind == "ft300":
             lines += ['[gauge]', 'driver = "ft300"', f'port = "{self.servers["gauge"].url}"', 'device_id = 9',
                       'mode = "stream"', f'fresh_after_s = {self.gauge_latency_s!r}', '']
+        elif self.gauge_kind == "ati_netft":
+            lines += ['[gauge]', 'driver = "ati_netft"', 'port = "127.0.0.1"', f'rdt_port = {self.netft.rdt_port}',
+                      f'http_port = {self.netft.http_port}', 'mode = "stream"',
+                      f'fresh_after_s = {self.gauge_latency_s!r}', '']
         else:
             lines += ['[gauge]', 'driver = "m8128"', f'port = "{self.servers["gauge"].url}"', 'mode = "stream"',
                       f'fresh_after_s = {self.gauge_latency_s!r}', '']
@@ -118,6 +132,8 @@ class SimulatedRig:
     def close(self) -> None:
         for server in self.servers.values():
             server.close()
+        if getattr(self, "netft", None) is not None:
+            self.netft.close()
 
     def __enter__(self) -> "SimulatedRig":
         return self

@@ -1,20 +1,26 @@
-"""A Modbus RTU bus (RS-485 line or ``socket://`` RTU-over-TCP) through pymodbus.
+"""A Modbus RTU bus (RS-485 line or ``socket://`` RTU-over-TCP): request/reply exchanges.
 
-The only module that imports pymodbus. Exception responses become ``DeviceRejected``
-with the Modbus exception name; no reply after the retries becomes ``DeviceTimeout``;
-a vanished port ``DeviceDisconnected``. Several drives share one bus by device id.
+Framed here (``modbus_frames``) rather than through pymodbus, so that every reply is
+checked against its own request before a value is used, and the wait for it follows
+the port's clock (``serial_link``). pymodbus 3.16 checks the CRC and the device id,
+but takes any other sound frame as the answer (a late reply to the previous request
+became a position or an alarm: issue 12, finding 5), and waits in real time only.
+
+Before each request stale input is discarded. A reply with a bad CRC, or none within
+the timeout, is retried ``retries`` times; a sound frame answering another request
+(device id, function, byte count, echoed register/value/quantity) is skipped and the
+request's own reply awaited. Exception responses become ``DeviceRejected`` with the
+Modbus exception name (not retried: the device answered); no valid reply after the
+retries ``DeviceTimeout`` or ``FramingError``; a vanished port ``DeviceDisconnected``.
+Every error names the device. A late reply to an *identical* request cannot be told
+apart on RTU (no transaction id); it carries the same quantity, at most one timeout old.
 """
 
 from __future__ import annotations
 
-import logging
-import threading
-
-from pymodbus.client import ModbusSerialClient
-from pymodbus.exceptions import ConnectionException, ModbusIOException
-
-from rig.errors import DeviceDisconnected, DeviceRejected, DeviceTimeout
-from rig.transport.serial_link import PORT_ERRORS, with_byte_count
+from rig.errors import DeviceRejected, DeviceTimeout, FramingError
+from rig.transport import modbus_frames as mf
+from rig.transport.serial_link import SerialLink
 
 # Modbus application exception codes (Modbus Application Protocol v1.1b3, §7).
 EXCEPTION_NAMES = {
@@ -28,10 +34,9 @@ EXCEPTION_NAMES = {
     10: "GATEWAY PATH UNAVAILABLE",
     11: "GATEWAY TARGET DEVICE FAILED TO RESPOND",
 }
-
-# pymodbus logs every timeout at ERROR before raising; we raise a typed error that
-# says the same thing with the device name, so keep its logger quieter.
-logging.getLogger("pymodbus").setLevel(logging.CRITICAL)
+# Other requests' replies skipped while awaiting one reply, before the try counts as
+# failed: a bus holds at most a few late replies, a device spamming frames is broken.
+MAX_OTHER_REPLIES = 4
 
 
 def to_signed16(value: int) -> int:
@@ -63,55 +68,63 @@ class ModbusBus:
     def __init__(self, url: str, *, baudrate: int, timeout_s: float, retries: int, device: str):
         self.url = url
         self.device = device
-        self.lock = threading.RLock()
-        self.client = ModbusSerialClient(url, baudrate=baudrate, timeout=timeout_s, retries=retries)
-        if not self.client.connect():
-            raise DeviceDisconnected(device, f"open {url}", None, f"cannot open Modbus port {url}")
-        self.client.socket = with_byte_count(self.client.socket)
+        self.retries = retries
+        self.link = SerialLink(url, baudrate=baudrate, timeout_s=timeout_s, device=device)
+        self.lock = self.link.lock
+        self.stale_frames = 0  # other requests' replies seen and skipped
+        self.failed_tries = 0  # tries that timed out or got a garbled reply
 
-    def _call(self, what: str, device: str, fn, *args, **kwargs):
-        with self.lock:
+    def _exchange(self, request: bytes, what: str, device: str) -> list[int] | None:
+        last: Exception | None = None
+        for _ in range(self.retries + 1):
+            with self.lock:
+                self.link.discard_input(device=device)
+                self.link.write(request, what, device=device)
+                try:
+                    return self._await_reply(request, what, device)
+                except mf.ExceptionReply as exc:
+                    name = EXCEPTION_NAMES.get(exc.code, f"exception {exc.code}")
+                    raise DeviceRejected(device, what, f"exception response, code {exc.code}",
+                                         f"Modbus exception {exc.code} ({name})") from None
+                except (DeviceTimeout, FramingError) as exc:
+                    self.failed_tries += 1
+                    last = exc
+        raise last
+
+    def _await_reply(self, request: bytes, what: str, device: str) -> list[int] | None:
+        other = None
+        for _ in range(MAX_OTHER_REPLIES + 1):
             try:
-                reply = fn(*args, **kwargs)
-            except ModbusIOException as exc:
-                raise DeviceTimeout(device, what, None, f"no valid Modbus reply on {self.url}: {exc}") from exc
-            except ConnectionException as exc:
-                raise DeviceDisconnected(device, what, None, f"Modbus port {self.url} lost: {exc}") from exc
-            except PORT_ERRORS as exc:
-                raise DeviceDisconnected(device, what, None, f"Modbus port {self.url} failed: {exc}") from exc
-        if reply is None:
-            raise DeviceTimeout(device, what, None, f"no reply on {self.url}")
-        if reply.isError():
-            code = getattr(reply, "exception_code", None)
-            name = EXCEPTION_NAMES.get(code, f"exception {code}")
-            raise DeviceRejected(device, what, f"exception response, code {code}", f"Modbus exception {code} ({name})")
-        return reply
+                frame = self.link.read_frame(mf.reply_length, what, device=device)
+                return mf.parse_reply(request, frame)
+            except mf.BadFrame as exc:
+                raise FramingError(device, what, None, f"garbled Modbus reply on {self.url}: {exc}") from None
+            except mf.OtherReply as exc:
+                self.stale_frames += 1
+                other = f"{exc} ({frame.hex(' ')})"
+        raise FramingError(device, what, None, f"replies on {self.url} answer other requests: {other}")
 
     def read_holding(self, device_id: int, address: int, count: int, *, device: str) -> list[int]:
         what = f"read holding {address:#06x} x{count} @id {device_id}"
-        reply = self._call(what, device, self.client.read_holding_registers, address, count=count, device_id=device_id)
-        return list(reply.registers)
+        return self._exchange(mf.read_request(device_id, mf.READ_HOLDING, address, count), what, device)
 
     def read_input(self, device_id: int, address: int, count: int, *, device: str) -> list[int]:
         what = f"read input {address:#06x} x{count} @id {device_id}"
-        reply = self._call(what, device, self.client.read_input_registers, address, count=count, device_id=device_id)
-        return list(reply.registers)
+        return self._exchange(mf.read_request(device_id, mf.READ_INPUT, address, count), what, device)
 
     def write_register(self, device_id: int, address: int, value: int, *, device: str) -> None:
         what = f"write {address:#06x}={value:#06x} @id {device_id}"
-        self._call(what, device, self.client.write_register, address, to_unsigned16(value), device_id=device_id)
+        self._exchange(mf.write_single_request(device_id, address, to_unsigned16(value)), what, device)
 
     def write_registers(self, device_id: int, address: int, values: list[int], *, device: str) -> None:
         what = f"write {address:#06x}={[hex(v) for v in values]} @id {device_id}"
         regs = [to_unsigned16(v) for v in values]
-        self._call(what, device, self.client.write_registers, address, regs, device_id=device_id)
+        self._exchange(mf.write_multiple_request(device_id, address, regs), what, device)
 
     def raw_port(self):
-        """The underlying pyserial port, for devices that leave Modbus for a binary stream
-        (the FT300's stream mode). Hold ``lock`` while using it."""
-        if self.client.socket is None:
-            raise DeviceDisconnected(self.device, "raw", None, f"Modbus port {self.url} is closed")
-        return self.client.socket
+        """The underlying port, for devices that leave Modbus for a binary stream (the
+        FT300's stream mode). Hold ``lock`` while using it; prefer ``link``."""
+        return self.link.port
 
     def close(self) -> None:
-        self.client.close()
+        self.link.close()

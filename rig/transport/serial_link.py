@@ -1,52 +1,74 @@
 """Byte transport over a serial port URL (a device path, a pty, ``socket://host:port``).
 
-The only module (with ``modbus_bus``) that imports pyserial. Every read has a timeout;
-a vanished port becomes ``DeviceDisconnected``, an incomplete read ``DeviceTimeout``.
+The only module that imports pyserial. Every read has a timeout; a vanished port
+becomes ``DeviceDisconnected``, an incomplete reply ``DeviceTimeout``. Interrupted
+system calls are retried (``rig.transport.eintr``). On a port served by an in-process
+simulator, reply timeouts follow the simulator's time (``rig.transport.peer``).
 """
 
 from __future__ import annotations
 
+import socket
 import threading
+from typing import Callable
 
 import serial
 
-try:
-    import termios
-
-    _TERMIOS_ERROR: tuple = (termios.error,)
-except ImportError:  # not POSIX
-    _TERMIOS_ERROR = ()
+from rig.clock import SystemClock
+from rig.errors import DeviceDisconnected, DeviceTimeout
+from rig.transport import peer as peers
+from rig.transport.eintr import TERMIOS_ERROR, retry_eintr
 
 # Every way a port fails when its device vanishes: pyserial's own error, the OS's,
 # termios.error from tcdrain on a dead pty (not an OSError), and TypeError from a
 # port pyserial has already closed.
-PORT_ERRORS = (serial.SerialException, OSError, TypeError, *_TERMIOS_ERROR)
+PORT_ERRORS = (serial.SerialException, OSError, TypeError, *TERMIOS_ERROR)
 
-from rig.errors import DeviceDisconnected, DeviceTimeout
+# Real seconds one blocking read waits before the reply deadline is checked again.
+POLL_S = 0.01
+_REAL = SystemClock()  # reply deadlines on hardware are real time
 
 
-class CountingSocketPort:
-    """A pyserial ``socket://`` port whose ``in_waiting`` is the real byte count.
+class TrackedPort:
+    """A pyserial port that counts the bytes each way and retries EINTR.
 
-    pyserial's socket handler reports 0 or 1, so readers that size their read by
-    ``in_waiting`` (pymodbus does) fetch one byte per poll: 17 bytes take ~40 ms.
+    pyserial's ``read`` and ``write`` already retry EINTR internally; ``flush``
+    (tcdrain) does not, and a partial read is returned, never repeated, so only
+    ``flush`` and ``in_waiting`` go through ``retry_eintr``. For ``socket://`` ports,
+    ``in_waiting`` is the real byte count: pyserial's socket handler reports 0 or 1, so
+    a reader that sizes its read by it fetches one byte per poll.
     Everything else is delegated to the wrapped port.
     """
 
     def __init__(self, port):
         object.__setattr__(self, "_port", port)
+        object.__setattr__(self, "bytes_read", 0)
+        object.__setattr__(self, "bytes_written", 0)
 
     @property
     def in_waiting(self) -> int:
-        import socket
-
-        sock = self._port._socket
+        sock = getattr(self._port, "_socket", None)
+        if sock is None:
+            return retry_eintr(lambda: self._port.in_waiting)
         try:
             return len(sock.recv(65536, socket.MSG_PEEK | socket.MSG_DONTWAIT))
         except BlockingIOError:
             return 0
         except OSError as exc:
             raise serial.SerialException(f"socket failed: {exc}") from exc
+
+    def read(self, size: int = 1) -> bytes:
+        data = self._port.read(size)
+        object.__setattr__(self, "bytes_read", self.bytes_read + len(data))
+        return data
+
+    def write(self, data: bytes) -> int:
+        n = self._port.write(data)
+        object.__setattr__(self, "bytes_written", self.bytes_written + len(data))
+        return n
+
+    def flush(self) -> None:
+        retry_eintr(self._port.flush)
 
     def __getattr__(self, name):
         return getattr(self._port, name)
@@ -55,76 +77,135 @@ class CountingSocketPort:
         setattr(self._port, name, value)
 
 
-def with_byte_count(port):
-    """Wrap ``socket://`` ports in CountingSocketPort; other ports are returned as they are."""
-    return CountingSocketPort(port) if hasattr(port, "_socket") else port
-
-
-def open_port(url: str, *, baudrate: int, timeout_s: float, device: str) -> serial.SerialBase:
+def open_port(url: str, *, baudrate: int, timeout_s: float, device: str) -> TrackedPort:
     """Open ``url`` with pyserial (8N1). Raises DeviceDisconnected naming the device and port."""
     try:
-        return with_byte_count(serial.serial_for_url(url, baudrate=baudrate, timeout=timeout_s, write_timeout=timeout_s))
+        return TrackedPort(serial.serial_for_url(url, baudrate=baudrate, timeout=timeout_s, write_timeout=timeout_s))
     except (*PORT_ERRORS, ValueError) as exc:
         raise DeviceDisconnected(device, f"open {url}", None, f"cannot open port {url}: {exc}") from exc
+
+
+class _RealTimeWait:
+    """Hardware: a reply is late ``timeout_s`` real seconds after the wait began."""
+
+    def __init__(self, timeout_s: float):
+        self.timeout_s = timeout_s
+        self.deadline = _REAL.now() + timeout_s
+
+    def late(self) -> str | None:
+        return f"no reply within {self.timeout_s:g} s" if _REAL.now() >= self.deadline else None
+
+
+class _PeerWait:
+    """In-process simulator: a reply is late when the simulator says none is coming
+    within ``timeout_s`` of its time, or when it has not answered for ``stall_limit_s``
+    real seconds (stalled or dead)."""
+
+    def __init__(self, link: "SerialLink", peer):
+        self.link, self.peer = link, peer
+        self.started = _REAL.now()
+
+    def late(self) -> str | None:
+        link, peer = self.link, self.peer
+        if not peer.alive:
+            return "no reply: the simulator has stopped"
+        outlook = peer.reply_outlook(link._peer_base, link.port.bytes_written, link.port.bytes_read, link.timeout_s)
+        if outlook is peers.Outlook.SILENT:
+            return f"no reply within {link.timeout_s:g} s (simulated time)"
+        if _REAL.now() - self.started > peer.stall_limit_s:
+            return f"no reply within {link.timeout_s:g} s: the simulator did not answer in {peer.stall_limit_s:g} s of real time"
+        return None
 
 
 class SerialLink:
     """A serial port shared by the devices on it (a Zaber daisy chain, an RS-485 bus).
 
-    ``lock`` serialises request/reply exchanges between the users of the port.
+    ``lock`` serialises request/reply exchanges between the users of the port. Bytes
+    read past the end of a reply are kept for the next read.
     """
 
     def __init__(self, url: str, *, baudrate: int, timeout_s: float, device: str):
         self.url = url
         self.device = device
         self.timeout_s = timeout_s
-        self.port = open_port(url, baudrate=baudrate, timeout_s=timeout_s, device=device)
+        self.port = open_port(url, baudrate=baudrate, timeout_s=POLL_S, device=device)
         self.lock = threading.RLock()
+        self._rx = bytearray()
+        peer = peers.lookup(url)
+        self._peer_base = peer.counters() if peer is not None else (0, 0)
 
-    def write(self, data: bytes, command: str) -> None:
+    def _fail(self, what: str, command: str, exc: BaseException, device: str | None) -> DeviceDisconnected:
+        return DeviceDisconnected(device or self.device, command, None, f"{what} {self.url} failed: {exc}")
+
+    def write(self, data: bytes, command: str, *, device: str | None = None) -> None:
         try:
             self.port.write(data)
             self.port.flush()
         except PORT_ERRORS as exc:
-            raise DeviceDisconnected(self.device, command, None, f"write to {self.url} failed: {exc}") from exc
+            raise self._fail("write to", command, exc, device) from exc
 
-    def read_until(self, terminator: bytes, command: str) -> bytes:
-        """Read through ``terminator``; raises DeviceTimeout with what did arrive."""
-        try:
-            data = self.port.read_until(terminator)
-        except PORT_ERRORS as exc:
-            raise DeviceDisconnected(self.device, command, None, f"read from {self.url} failed: {exc}") from exc
-        if not data.endswith(terminator):
-            raise DeviceTimeout(self.device, command, data, f"no reply within {self.timeout_s:g} s")
-        return data
-
-    def read_exact(self, n: int, command: str) -> bytes:
-        try:
-            data = self.port.read(n)
-        except PORT_ERRORS as exc:
-            raise DeviceDisconnected(self.device, command, None, f"read from {self.url} failed: {exc}") from exc
-        if len(data) != n:
-            raise DeviceTimeout(self.device, command, data, f"{len(data)} of {n} bytes within {self.timeout_s:g} s")
-        return data
-
-    def read_available(self, max_bytes: int = 65536) -> bytes:
-        """Whatever has arrived (waits up to the timeout for the first byte)."""
+    def _read_some(self, command: str, device: str | None) -> bytes:
+        """What arrives within one port timeout (POLL_S unless a stream changed it)."""
         try:
             first = self.port.read(1)
             if not first:
                 return b""
             waiting = self.port.in_waiting
-            return first + (self.port.read(min(waiting, max_bytes)) if waiting else b"")
+            return first + (self.port.read(waiting) if waiting else b"")
         except PORT_ERRORS as exc:
-            raise DeviceDisconnected(self.device, "read", None, f"read from {self.url} failed: {exc}") from exc
+            raise self._fail("read from", command, exc, device) from exc
 
-    def discard_input(self) -> bytes:
+    def read_frame(self, frame_end: Callable[[bytes], int | None], command: str, *,
+                   device: str | None = None) -> bytes:
+        """Read until ``frame_end(buffer)`` gives the length of the frame at its start;
+        return that frame. DeviceTimeout (with what did arrive) when the reply is late."""
+        peer = peers.lookup(self.url)
+        wait = _PeerWait(self, peer) if peer is not None else _RealTimeWait(self.timeout_s)
+        while True:
+            end = frame_end(bytes(self._rx))
+            if end:
+                frame = bytes(self._rx[:end])
+                del self._rx[:end]
+                return frame
+            chunk = self._read_some(command, device)
+            if chunk:
+                self._rx += chunk
+                continue
+            late = wait.late()
+            if late:
+                partial = bytes(self._rx)
+                self._rx.clear()
+                raise DeviceTimeout(device or self.device, command, partial, late)
+
+    def read_until(self, terminator: bytes, command: str) -> bytes:
+        """Read through ``terminator``; raises DeviceTimeout with what did arrive."""
+
+        def end(buf: bytes) -> int | None:
+            i = buf.find(terminator)
+            return i + len(terminator) if i >= 0 else None
+
+        return self.read_frame(end, command)
+
+    def read_exact(self, n: int, command: str) -> bytes:
+        return self.read_frame(lambda buf: n if len(buf) >= n else None, command)
+
+    def read_available(self, max_bytes: int = 65536) -> bytes:
+        """Whatever has arrived (waits up to the port timeout for the first byte)."""
+        if self._rx:
+            data = bytes(self._rx[:max_bytes])
+            del self._rx[:max_bytes]
+            return data
+        return self._read_some("read", None)
+
+    def discard_input(self, *, device: str | None = None) -> bytes:
         """Drop stale bytes (a late reply to an earlier, timed-out command)."""
+        stale = bytes(self._rx)
+        self._rx.clear()
         try:
             waiting = self.port.in_waiting
-            return self.port.read(waiting) if waiting else b""
+            return stale + (self.port.read(waiting) if waiting else b"")
         except PORT_ERRORS as exc:
-            raise DeviceDisconnected(self.device, "flush", None, f"{self.url}: {exc}") from exc
+            raise self._fail("flush", "discard input", exc, device) from exc
 
     def close(self) -> None:
         try:

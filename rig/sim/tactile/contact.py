@@ -4,6 +4,10 @@ Computes only what is asked: the normal problem is solved on the box where the
 indenter can touch (contact needs h < d); the tangential problem only when there
 is shear or twist; the full-sensor displacement fields (for optics and markers)
 only when ``fields`` names them.
+
+Past the gel thickness the indenter meets the rigid window (``backing.py``): the gel
+is solved with the face clipped at the window and the window adds a steep contact
+load, so force and image stay consistent and continuous in depth.
 """
 
 from __future__ import annotations
@@ -15,6 +19,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from rig.sim.contact import Pose
+from rig.sim.tactile.backing import NO_BACKING, BackingLoad, backing_load, gel_separation
 from rig.sim.tactile.elastomer import Elastomer, PhysicsInputError
 from rig.sim.tactile.indenters import Indenter
 from rig.sim.tactile.kernels import kernels_for
@@ -48,10 +53,39 @@ class ContactResult:
     crop: tuple[slice, slice] | None
     fields: dict[str, np.ndarray] = field(default_factory=dict)  # full sensor grid, mm
     solve_ms: float = 0.0
+    backing: BackingLoad = NO_BACKING  # the window's share once the indenter reaches it
 
     @property
     def in_contact(self) -> bool:
         return self.normal is not None and self.normal.force_N > 0
+
+    @property
+    def on_backing(self) -> bool:
+        """The indenter is past the gel thickness: the gel is fully squeezed under it."""
+        return self.backing.force_N > 0
+
+    @property
+    def converged(self) -> bool:
+        """Every solve behind this result reached its tolerance."""
+        return all(s.converged for s in (self.normal, self.tangential) if s is not None)
+
+    @property
+    def normal_iterations(self) -> int:
+        return self.normal.iterations if self.normal is not None else 0
+
+    @property
+    def normal_residual(self) -> float:
+        """Relative change of the pressure in the normal solve's last iteration."""
+        return self.normal.residual if self.normal is not None else 0.0
+
+    @property
+    def tangential_iterations(self) -> int:
+        return self.tangential.iterations if self.tangential is not None else 0
+
+    @property
+    def tangential_residual(self) -> float:
+        """Relative change of the traction in the tangential solve's last iteration."""
+        return self.tangential.residual if self.tangential is not None else 0.0
 
 
 def _round_up(n: int, multiple: int = 8) -> int:
@@ -90,16 +124,15 @@ class TactileContact:
         """Solve at ``pose`` with the tangential motion since contact began.
 
         ``fields``: any of "uz" (surface sink), "uxy" (tangential displacement).
-        Raises PhysicsInputError for a depth that reaches the rigid backing.
+        A depth past the gel thickness presses the indenter on the window (see
+        ``backing.py``): finite, continuous, reported in ``result.backing``.
+        Raises PhysicsInputError for a non-finite pose.
         """
         t0 = time.perf_counter()
         for name, value in (("x", pose.x_mm), ("y", pose.y_mm), ("z", pose.z_mm), ("theta", pose.theta_deg)):
             if not math.isfinite(value):
                 raise PhysicsInputError(f"pose {name} must be finite, got {value}")
         d = pose.depth_mm
-        if d >= self.gel.thickness_mm:
-            raise PhysicsInputError(f"indentation {d:.3f} mm reaches the gel thickness {self.gel.thickness_mm:.3f} mm: "
-                                    "the indenter would touch the rigid backing")
         dx = self.geometry.dx_mm
         ny, nx = self.X.shape
         out = ContactResult(np.zeros(6), None, None, None)
@@ -119,7 +152,9 @@ class TactileContact:
         Xc, Yc = self.X[crop], self.Y[crop]
         k = kernels_for(hc.shape[0], hc.shape[1], dx, self.gel)
         p_init = p0 if p0 is not None and p0.shape == hc.shape else None
-        normal = solve_normal(k, hc, d, tol=self.tol, p0=p_init)
+        overlap = d - self.gel.thickness_mm  # past the window plane where > 0
+        normal = solve_normal(k, gel_separation(hc, d, self.gel.thickness_mm), d, tol=self.tol, p0=p_init)
+        backing = backing_load(hc, Xc, Yc, overlap, dx * dx)
         tangential = None
         if (shift_mm != (0.0, 0.0) or twist_rad != 0.0) and normal.force_N > 0:
             q_init = q0 if q0 is not None and q0[0].shape == hc.shape else None
@@ -128,15 +163,15 @@ class TactileContact:
                                           tol=self.tangential_tol, q0=q_init)
         cell = dx * dx
         p = normal.pressure_MPa
-        fz = normal.force_N
-        mx = float(np.sum((Yc - pose.y_mm) * p)) * cell
-        my = -float(np.sum((Xc - pose.x_mm) * p)) * cell
+        fz = normal.force_N + backing.force_N
+        mx = float(np.sum((Yc - pose.y_mm) * p)) * cell + (backing.y_mm - pose.y_mm) * backing.force_N
+        my = -float(np.sum((Xc - pose.x_mm) * p)) * cell - (backing.x_mm - pose.x_mm) * backing.force_N
         fx = fy = mz = 0.0
         if tangential is not None:
             fx, fy, mz = tangential.fx_N, tangential.fy_N, tangential.mz_Nmm
         lever = self.geometry.gauge_lever_mm
         out.wrench = np.array([fx, fy, fz, mx + lever * fy, my - lever * fx, mz])
-        out.normal, out.tangential, out.crop = normal, tangential, crop
+        out.normal, out.tangential, out.crop, out.backing = normal, tangential, crop, backing
         out = self.add_fields(out, fields)
         out.solve_ms = (time.perf_counter() - t0) * 1e3
         return out

@@ -182,9 +182,15 @@ class Kernels:
         if math.isfinite(gel.thickness_mm):
             normal = normal + self._layer_term()
         # Convolutions run in single precision: 2.5x faster, and 7 digits are far
-        # beyond the solver tolerances (1e-3..1e-6); sums are taken in float64.
+        # beyond the usual solver tolerances (1e-3..1e-5); sums are taken in float64.
+        # A solver that stalls on the float32 floor (~1e-7..1e-6 relative change of p,
+        # more on larger grids) asks for the float64 transforms (``precise=True``).
+        self._normal_real = normal
         self.normal_hat = sfft.rfft2(normal).astype(np.complex64)
+        self._normal_hat64 = None
+        self._tangential_real = None
         self._tangential_hat = None
+        self._tangential_hat64 = None
 
     def _layer_term(self) -> np.ndarray:
         """Cell-averaged (3×3 sub-points) layer correction on the wrap-around layout."""
@@ -200,9 +206,15 @@ class Kernels:
         return term
 
     @property
-    def tangential_hat(self):
-        """(Kxx, Kyy, Kxy) FFTs of Cerruti's kernel, with the layer correction, mm per MPa."""
-        if self._tangential_hat is None:
+    def normal_hat64(self) -> np.ndarray:
+        """The normal kernel's FFT in double precision, built on first use."""
+        if self._normal_hat64 is None:
+            self._normal_hat64 = sfft.rfft2(self._normal_real)
+        return self._normal_hat64
+
+    def _tangential_kernels(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(Kxx, Kyy, Kxy): Cerruti's kernel with the layer correction, mm per MPa, real space."""
+        if self._tangential_real is None:
             nu, E = self.gel.nu, self.gel.E_MPa
             c = (1 + nu) / (math.pi * E)
             I1 = self._Ixx + self._Iyy
@@ -211,8 +223,22 @@ class Kernels:
             kxy = c * nu * self._Ixy
             if math.isfinite(self.gel.thickness_mm):
                 kxx, kyy, kxy = (k + d for k, d in zip((kxx, kyy, kxy), self._tangential_layer_term()))
-            self._tangential_hat = tuple(sfft.rfft2(k).astype(np.complex64) for k in (kxx, kyy, kxy))
+            self._tangential_real = (kxx, kyy, kxy)
+        return self._tangential_real
+
+    @property
+    def tangential_hat(self):
+        """(Kxx, Kyy, Kxy) FFTs of Cerruti's kernel, with the layer correction, mm per MPa."""
+        if self._tangential_hat is None:
+            self._tangential_hat = tuple(sfft.rfft2(k).astype(np.complex64) for k in self._tangential_kernels())
         return self._tangential_hat
+
+    @property
+    def tangential_hat64(self):
+        """``tangential_hat`` in double precision, built on first use."""
+        if self._tangential_hat64 is None:
+            self._tangential_hat64 = tuple(sfft.rfft2(k) for k in self._tangential_kernels())
+        return self._tangential_hat64
 
     def _tangential_layer_term(self):
         X, Y = _offsets(self.ny, self.nx, self.dy, self.dx)
@@ -231,17 +257,21 @@ class Kernels:
         return acc
 
     def convolve(self, field_hat_kernel: np.ndarray, field: np.ndarray) -> np.ndarray:
-        padded = sfft.rfft2(field.astype(np.float32, copy=False), s=self.shape, workers=1)
+        """Linear (zero-padded) convolution; the kernel's dtype sets the precision."""
+        dtype = np.float64 if field_hat_kernel.dtype == np.complex128 else np.float32
+        padded = sfft.rfft2(field.astype(dtype, copy=False), s=self.shape, workers=1)
         out = sfft.irfft2(padded * field_hat_kernel, s=self.shape, workers=1)[: self.ny, : self.nx]
         return out.astype(np.float64)
 
-    def normal_displacement(self, p: np.ndarray) -> np.ndarray:
-        return self.convolve(self.normal_hat, p)
+    def normal_displacement(self, p: np.ndarray, *, precise: bool = False) -> np.ndarray:
+        return self.convolve(self.normal_hat64 if precise else self.normal_hat, p)
 
-    def tangential_displacement(self, qx: np.ndarray, qy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        kxx, kyy, kxy = self.tangential_hat
-        fx = sfft.rfft2(qx.astype(np.float32, copy=False), s=self.shape, workers=1)
-        fy = sfft.rfft2(qy.astype(np.float32, copy=False), s=self.shape, workers=1)
+    def tangential_displacement(self, qx: np.ndarray, qy: np.ndarray, *,
+                                precise: bool = False) -> tuple[np.ndarray, np.ndarray]:
+        kxx, kyy, kxy = self.tangential_hat64 if precise else self.tangential_hat
+        dtype = np.float64 if precise else np.float32
+        fx = sfft.rfft2(qx.astype(dtype, copy=False), s=self.shape, workers=1)
+        fy = sfft.rfft2(qy.astype(dtype, copy=False), s=self.shape, workers=1)
         ux = sfft.irfft2(kxx * fx + kxy * fy, s=self.shape, workers=1)[: self.ny, : self.nx]
         uy = sfft.irfft2(kxy * fx + kyy * fy, s=self.shape, workers=1)[: self.ny, : self.nx]
         return ux.astype(np.float64), uy.astype(np.float64)

@@ -22,7 +22,7 @@ import cv2
 import numpy as np
 
 from rig.sim.tactile.contact import SensorGeometry
-from rig.sim.tactile.optics import SHADINGS, LightModel, OpticsSpec
+from rig.sim.tactile.light import SHADINGS, LightModel, OpticsSpec
 
 DEFAULT_PROFILE = Path(__file__).parent / "data" / "gelsight_mini.toml"
 

@@ -43,6 +43,11 @@ class Scene:
         return self._renderer
 
     def frame(self, pose: Pose, *, image: bool = True) -> SceneFrame:
+        """Wrench (and image) at ``pose``. Past the gel thickness the indenter presses on
+        the window: the image is the fully squeezed gel, the wrench adds the window's
+        steep load, and ``frame.contact.on_backing`` is set (see ``backing.py``).
+        ``frame.contact.converged`` says whether the solves reached their tolerance.
+        Raises PhysicsInputError for a non-finite pose."""
         fields = self.renderer.needs() if image else frozenset()
         result = self.contact.solve(pose, fields)
         img = self.renderer.render(result.fields) if image else None

@@ -4,10 +4,16 @@ Tangential load depends on the motion since contact began (the anchor). When the
 contact slides fully, the anchor follows, so that reversing the motion unloads at
 once (gross slip, as on a real gel). Results are cached on the pose quantised to
 ``quantum_mm`` / ``quantum_deg``: a slow protocol asks for the same pose many times.
+
+Past the gel thickness the indenter presses on the window (``backing.py``): the
+gauge sees a steep, finite, continuous rise and the camera the fully squeezed gel.
+A solve that does not reach its tolerance is counted (``solver_warnings``) and
+logged once per contact model, so that a run can record how many frames it affects.
 """
 
 from __future__ import annotations
 
+import logging
 import math
 import threading
 
@@ -15,10 +21,10 @@ import numpy as np
 
 from rig.sim.contact import Pose
 from rig.sim.tactile.contact import ContactResult, SensorGeometry, TactileContact
-from rig.sim.tactile.elastomer import Elastomer, PhysicsInputError
+from rig.sim.tactile.elastomer import Elastomer
 from rig.sim.tactile.indenters import Indenter, get_indenter
 
-CRUSHED_FZ_N = 1.0e4  # the indenter is on the rigid backing: the gauge saturates
+log = logging.getLogger(__name__)
 
 
 class ElastomerContact:
@@ -34,6 +40,7 @@ class ElastomerContact:
         self._cache: ContactResult | None = None
         self._lock = threading.Lock()
         self.solves = 0
+        self._solver_warnings = 0
         if math.isfinite(self.solver.gel.thickness_mm):
             # ~0.5 s of Bessel quadrature, done before the first sample needs it.
             from rig.sim.tactile.kernels import warm_tables
@@ -43,6 +50,11 @@ class ElastomerContact:
     @property
     def indenter(self) -> Indenter:
         return self.solver.indenter
+
+    @property
+    def solver_warnings(self) -> int:
+        """Solves since construction that stopped short of their tolerance (never reset)."""
+        return self._solver_warnings
 
     def reset(self) -> None:
         """Forget the friction history (the stick anchor) and the cached solve."""
@@ -72,18 +84,26 @@ class ElastomerContact:
                 ax, ay, at = self._anchor
                 shift, twist = (pose.x_mm - ax, pose.y_mm - ay), math.radians(pose.theta_deg - at)
             prev = self._cache if self._cache is not None and self._cache.normal is not None else None
-            try:
-                result = self.solver.solve(
-                    pose, shift_mm=shift, twist_rad=twist, fields=fields,
-                    p0=prev.normal.pressure_MPa if prev else None,
-                    q0=(prev.tangential.qx_MPa, prev.tangential.qy_MPa) if prev and prev.tangential else None)
-            except PhysicsInputError:
-                result = ContactResult(np.array([0.0, 0.0, CRUSHED_FZ_N, 0.0, 0.0, 0.0]), None, None, None)
+            result = self.solver.solve(
+                pose, shift_mm=shift, twist_rad=twist, fields=fields,
+                p0=prev.normal.pressure_MPa if prev else None,
+                q0=(prev.tangential.qx_MPa, prev.tangential.qy_MPa) if prev and prev.tangential else None)
             self.solves += 1
+            if not result.converged:
+                self._count_unconverged(pose, result)
             if result.tangential is not None and result.tangential.stick_fraction == 0.0:
                 self._follow_slip(pose, result)
             self._cache_key, self._cache = self._key(pose), result
             return result
+
+    def _count_unconverged(self, pose: Pose, result: ContactResult) -> None:
+        self._solver_warnings += 1
+        if self._solver_warnings == 1:  # once per model: a gauge solves hundreds of times a second
+            log.warning("contact solve did not converge at %s (normal: %d iterations, residual %.2g; tangential: "
+                        "%d iterations, residual %.2g; tolerances %g / %g); further ones are only counted in "
+                        "solver_warnings", pose, result.normal_iterations, result.normal_residual,
+                        result.tangential_iterations, result.tangential_residual, self.solver.tol,
+                        self.solver.tangential_tol)
 
     @staticmethod
     def _missing(result: ContactResult, fields) -> set[str]:

@@ -1,0 +1,95 @@
+"""Does an open run file have every dataset and attribute the schema table promises?
+
+Shape and dtype only (no data is read), so it is cheap enough for every open. Used by
+``--resume`` before appending, by the dataset tools before reading and by
+``dataset validate``; each problem is one line that starts with the dataset's path.
+"""
+
+from __future__ import annotations
+
+import h5py
+import numpy as np
+
+from acquisition import schema as S
+
+NUMBER_KINDS = "iuf"
+
+
+def _first_line(exc: BaseException) -> str:
+    return str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+
+
+def _dtype_ok(actual: np.dtype, expected: str) -> bool:
+    want = np.dtype(expected)
+    if want.kind == "S":  # fixed-length bytes; any length reads the same way
+        return actual.kind == "S"
+    return actual == want
+
+
+def field_problems(f: h5py.File) -> dict[str, str]:
+    """{dataset path: what is wrong} for every field of the table that is missing or malformed."""
+    problems: dict[str, str] = {}
+    for field in S.FIELDS:
+        try:
+            obj = f.get(field.path)
+            if isinstance(obj, h5py.Dataset):
+                obj.dtype, obj.shape  # noqa: B018 (reads the dataset's header: damage shows here)
+        except (OSError, RuntimeError, KeyError, ValueError) as exc:
+            problems[field.path] = f"unreadable ({_first_line(exc)})"
+            continue
+        if obj is None:
+            if field.required:
+                problems[field.path] = "missing"
+            continue
+        if not isinstance(obj, h5py.Dataset):
+            problems[field.path] = f"is a {type(obj).__name__}, expected a dataset"
+            continue
+        if not _dtype_ok(obj.dtype, field.dtype):
+            problems[field.path] = f"dtype {obj.dtype}, expected {np.dtype(field.dtype)}"
+            continue
+        shape = obj.shape[1:] if field.per_frame else obj.shape
+        if field.per_frame and obj.ndim == 0:
+            problems[field.path] = f"is a scalar, expected (N, {', '.join(map(str, field.shape))})"
+        elif len(shape) != len(field.shape) or any(w is not None and a != w for a, w in zip(shape, field.shape)):
+            want = ", ".join("any" if w is None else str(w) for w in field.shape)
+            want = f"(N{', ' if want else ''}{want})" if field.per_frame else f"({want})"
+            problems[field.path] = f"shape {obj.shape}, expected {want}"
+    return problems
+
+
+def _describe(value: np.ndarray) -> str:
+    if value.ndim == 0:
+        text = repr(value.item())
+        return text if len(text) <= 40 else text[:37] + "..."
+    return f"{value.dtype} array of shape {value.shape}"
+
+
+def attr_problems(f: h5py.File) -> dict[str, str]:
+    """{attribute name: what is wrong} for the root attributes of the table."""
+    problems: dict[str, str] = {}
+    for name, kind in S.ATTRS:
+        try:
+            if name not in f.attrs:
+                problems[name] = "missing"
+                continue
+            value = np.asarray(f.attrs[name])
+        except (OSError, RuntimeError, KeyError, ValueError) as exc:
+            problems[name] = f"unreadable ({_first_line(exc)})"
+            continue
+        if kind == "str" and not (value.ndim == 0 and value.dtype.kind in "OSU"):
+            problems[name] = f"is {_describe(value)}, expected text"
+        elif kind in ("float", "int") and not (value.ndim == 0 and value.dtype.kind in NUMBER_KINDS):
+            problems[name] = f"is {_describe(value)}, expected a number"
+        elif kind == "int" and value.dtype.kind == "f" and not float(value).is_integer():
+            problems[name] = f"is {value}, expected a whole number"
+        elif kind == "float[4]" and not (value.shape == (4,) and value.dtype.kind in NUMBER_KINDS):
+            problems[name] = f"is {_describe(value)}, expected 4 numbers"
+        elif kind == "str[]" and not (value.ndim == 1 and value.dtype.kind in "OSU"):
+            problems[name] = f"is {_describe(value)}, expected a list of text"
+    return problems
+
+
+def layout_problems(f: h5py.File) -> list[str]:
+    """Every dataset and attribute problem as 'path: problem' lines (empty when the layout is sound)."""
+    return ([f"{path}: {p}" for path, p in field_problems(f).items()]
+            + [f"attribute {name}: {p}" for name, p in attr_problems(f).items()])

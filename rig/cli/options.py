@@ -1,0 +1,28 @@
+"""Numeric command-line options checked where they enter: finite, within bounds, the option named.
+
+typer's ``min=`` lets ``inf`` through (and options without it take ``nan``); a NaN speed or
+step would reach the stages. Use ``callback=number(...)`` on every float option.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import typer
+
+from rig.config import number_problem
+
+
+def number(*, low: float | None = None, high: float | None = None, positive: bool = False):
+    """A typer callback refusing NaN, inf and values outside the bounds, naming the option
+    ("Invalid value for '--speed': must be > 0 and <= 1000.0, got nan"); None passes (not given)."""
+
+    def check(ctx: typer.Context, param: typer.CallbackParam, value: Any):
+        if value is None:
+            return value
+        problem = number_problem(value, low=low, high=high, positive=positive)
+        if problem:
+            raise typer.BadParameter(problem, ctx=ctx, param=param)
+        return value
+
+    return check
