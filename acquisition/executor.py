@@ -178,7 +178,7 @@ class Acquisition:
                 self.rig.tare(50)
                 reference = self._capture_frame(self.clock.now()).image
                 if writer is None:
-                    from rig.sim.tactile.indenters import get_indenter
+                    from objects.indenters import get_indenter
 
                     info = dict(header or {})
                     mm_per_px = float(info.get("mm_per_px", float("nan")))

@@ -30,6 +30,7 @@ ATTR_CREATED = "created_utc"
 ATTR_PROTOCOL_NAME = "protocol_name"
 ATTR_PROTOCOL = "protocol_toml"  # the protocol file's text
 ATTR_RIG_CONFIG = "rig_config"  # the rig config (TOML text, or a description of the simulated rig)
+RIG_CONFIG_MARK = "# built-in simulated rig (rig run-protocol --sim)"  # first line of a simulated run's rig_config
 ATTR_OBJECT = "object_name"
 ATTR_OBJECT_GEOMETRY = "object_geometry"  # description of the indenter
 ATTR_SENSOR_KIND = "sensor_kind"

@@ -15,14 +15,14 @@ import os
 import socket
 from pathlib import Path
 
-from rig.errors import RigError
+from common.errors import ToolError
 
 
-class RunFileError(RigError):
+class RunFileError(ToolError):
     """A run file is missing, not HDF5, damaged, or not what was expected; names the file."""
 
 
-class RunLocked(RigError):
+class RunLocked(ToolError):
     """Another live process writes this run file; names its pid and host."""
 
 
@@ -48,7 +48,7 @@ class WriterLock:
 
     @classmethod
     def acquire(cls, run_path: str | Path) -> "WriterLock":
-        """Take the lock without waiting; RunLocked names the holder, RigError an unwritable folder."""
+        """Take the lock without waiting; RunLocked names the holder, RunFileError an unwritable folder."""
         run_path = Path(run_path)
         path = lock_path(run_path)
         while True:

@@ -2,7 +2,7 @@
 
     .venv/bin/python bench/calibrate_optics.py [--data ../shared/data/gelsight_mini]
 
-Calls ``rig.sim.tactile.calibration.fit_optics`` on the no-contact background and the
+Calls ``sensor_sim.calibration.fit_optics`` on the no-contact background and the
 five ball presses (a ~4 mm steel ball: Taxim's calibration data), finding each contact
 automatically (the published circles in presses.csv are printed beside them), and
 writes rig/sim/tactile/data/gelsight_mini.toml with its background gelsight_mini.png:
@@ -18,8 +18,8 @@ from pathlib import Path
 
 import cv2
 
-from rig.sim.tactile.calibration import Press, fit_optics
-from rig.sim.tactile.profile import DEFAULT_PROFILE, SensorProfile, save_profile
+from sensor_sim.calibration import Press, fit_optics
+from sensor_sim.profile import DEFAULT_PROFILE, SensorProfile, save_profile
 
 MM_PER_PX = 0.0295  # as given by the data's publisher, approximate
 BALL_RADIUS_MM = 2.0

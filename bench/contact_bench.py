@@ -23,9 +23,9 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 import numpy as np
 
-from rig.sim.tactile.elastomer import Elastomer
-from rig.sim.tactile.kernels import Kernels
-from rig.sim.tactile.normal_contact import solve_normal
+from sensor_sim.elastomer import Elastomer
+from sensor_sim.kernels import Kernels
+from sensor_sim.normal_contact import solve_normal
 
 GEL = Elastomer(E_MPa=1.0, nu=0.5, thickness_mm=math.inf)
 

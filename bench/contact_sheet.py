@@ -14,10 +14,10 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from rig.sim.contact import Pose
-from rig.sim.tactile.indenters import get_indenter
-from rig.sim.tactile.optics import SENSOR_KINDS
-from rig.sim.tactile.scene import Scene
+from objects.pose import Pose
+from objects.indenters import get_indenter
+from sensor_sim.light import SENSOR_KINDS
+from sensor_sim.scene import Scene
 
 INDENTERS = ("sphere4mm", "sphere10mm", "sphere15mm", "circle8mm", "square", "ring", "heart", "woven", "irregular")
 DEPTHS = (0.4, 1.2)

@@ -23,7 +23,7 @@ def synthetic_split(tmp: Path) -> Path:
     from acquisition.run_file import RunHeader, RunWriter
     from dataset.split import make_split
     from protocols.plan import PHASES
-    from rig.sim.tactile.indenters import get_indenter
+    from objects.indenters import get_indenter
 
     rng = np.random.default_rng(0)
     frames = rng.integers(0, 256, (32, 256, 256, 3), dtype=np.uint8)

@@ -26,7 +26,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from rig.sim.tactile.calibration import Press, find_contact, fit_optics, refine_contact, render_press
+from sensor_sim.calibration import Press, find_contact, fit_optics, refine_contact, render_press
 
 MM_PER_PX = 0.0295  # as given by the data's publisher, approximate
 BALL_RADIUS_MM = 2.0  # Taxim's calibration ball (~4 mm diameter)

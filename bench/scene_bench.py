@@ -19,8 +19,8 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 import numpy as np
 
-from rig.sim.contact import Pose
-from rig.sim.tactile.scene import Scene
+from objects.pose import Pose
+from sensor_sim.scene import Scene
 
 
 def path(phase: str, n: int = 12):

@@ -68,8 +68,8 @@ def real_frames(folder: Path) -> list[np.ndarray]:
 
 
 def simulated_frames(kind: str, n: int) -> list[np.ndarray]:
-    from rig.sim.contact import Pose
-    from rig.sim.tactile.scene import Scene
+    from objects.pose import Pose
+    from sensor_sim.scene import Scene
 
     scene = Scene("sphere10mm", kind, seed=1)
     out = []

@@ -24,8 +24,8 @@ from acquisition import schema as S
 from acquisition.run_file import RunFileError, RunHeader, RunWriter
 from dataset.runs import open_run
 from protocols.plan import PHASES
-from rig.config import TRAVEL_LIMIT, finite_number
-from rig.errors import ConfigError
+from common.table import finite_number
+from common.errors import ConfigError
 
 WRENCH_COLS = ("Fx_N", "Fy_N", "Fz_N", "Mx_Nmm", "My_Nmm", "Mz_Nmm")
 POSE_COLS = ("x_mm", "y_mm", "z_mm", "theta_deg")
@@ -71,6 +71,7 @@ def _read_image(path: Path, what: str) -> np.ndarray:
 META_KEYS = ("mm_per_px", "object", "sensor", "protocol", "capture_hz", "status")
 MM_PER_PX = (1e-4, 10.0)  # a GelSight Mini is 0.0634 mm/px at 320x240; beyond these no camera sees a gel
 CAPTURE_HZ = (0.01, 1000.0)  # one frame a 100 s up to a fast camera's frame rate
+POSE_LIMIT = 1e4  # mm or deg: 10 m of travel or ~28 turns; no lab stage goes further (as the rig config)
 FORCE_N = 1e4  # |F|: 10 kN is far past crushing any tactile gel
 TORQUE_NMM = 1e6  # |M|: 1 kN·m, likewise
 T_FRAME_S = 1e8  # s: three years of recording
@@ -132,7 +133,7 @@ def _read_rows(folder: Path, table: Path, rows: list[dict], capture_hz: float) -
 
     checked = []
     for i, row in enumerate(rows):
-        pose = np.array([number(row, c, i, bound=TRAVEL_LIMIT) for c in POSE_COLS])
+        pose = np.array([number(row, c, i, bound=POSE_LIMIT) for c in POSE_COLS])
         phase = row.get("phase") or "press"
         if phase not in PHASES:
             raise ConfigError(str(table), f"row {i + 2}, column phase", f"unknown phase {phase!r}; expected one of "
@@ -142,7 +143,7 @@ def _read_rows(folder: Path, table: Path, rows: list[dict], capture_hz: float) -
             raise ConfigError(str(table), f"row {i + 2}, column level", f"must be a whole number, got {level!r}")
         checked.append((_frame_path(folder, table, i, row.get("file")), {
             S.WRENCH: np.array([number(row, c, i, bound=FORCE_N if c.endswith("_N") else TORQUE_NMM) for c in WRENCH_COLS]),
-            S.POSE_COMMANDED: np.array([number(row, c, i, default=pose[k], bound=TRAVEL_LIMIT)
+            S.POSE_COMMANDED: np.array([number(row, c, i, default=pose[k], bound=POSE_LIMIT)
                                         for k, c in enumerate(CMD_COLS)]),
             S.POSE_MEASURED: pose, S.T_FRAME: number(row, "t_frame_s", i, default=float(i), low=0.0, high=T_FRAME_S),
             S.T_CAPTURE: float(i) / capture_hz, S.WRENCH_SKEW: 0.0, S.CAPTURE_INDEX: i, S.STEP_INDEX: 0,

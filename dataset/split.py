@@ -16,14 +16,15 @@ import numpy as np
 
 from acquisition import schema as S
 from dataset.runs import open_run, summarize
-from rig.config import finite_number
-from rig.errors import ConfigError, RigError
+from common.table import finite_number
+from common.errors import ConfigError
+from common.errors import ToolError
 
 MANIFEST = "split.json"
 PART_NAMES = {2: ("train", "test"), 3: ("train", "val", "test")}
 
 
-class SplitError(RigError):
+class SplitError(ToolError):
     pass
 
 

@@ -2,8 +2,8 @@
 
 For a frame it takes what a physics simulator is given (the object and its measured
 pose x, y, z, θ), solves the gel's contact mechanics the simulated rig solves
-(rig.sim.rig_sim.rig_contact) and lights the result with the calibrated optics
-(rig.sim.tactile.optics), with no sensor noise. Each frame is rendered on its own,
+(sensor_sim.world_contact.rig_contact) and lights the result with the calibrated optics
+(sensor_sim.optics), with no sensor noise. Each frame is rendered on its own,
 without the friction history of the frames before it, as Taxim or FOTS render one.
 
 Background: the run's own no-contact reference frame for sensors without markers (so
@@ -29,9 +29,10 @@ class BaselineUnavailable(ValueError):
 
 class PhysicsRender:
     def __init__(self, run_path: str, *, noise_std: float = 0.0):
-        from rig.sim.rig_sim import rig_contact
-        from rig.sim.tactile.indenters import INDENTERS
-        from rig.sim.tactile.optics import OpticsSpec, Renderer
+        from sensor_sim.world_contact import rig_contact
+        from objects.indenters import INDENTERS
+        from sensor_sim.light import OpticsSpec
+        from sensor_sim.optics import Renderer
 
         with h5py.File(run_path, "r", swmr=True) as f:
             attrs = dict(f.attrs)
@@ -51,7 +52,7 @@ class PhysicsRender:
 
     def render(self, pose_measured: np.ndarray) -> np.ndarray:
         """BGR uint8 frame at the run's size for a pose (x, y, z mm from the contact point, θ deg)."""
-        from rig.sim.contact import Pose
+        from objects.pose import Pose
 
         self.contact.reset()  # the pose alone: no friction history
         x, y, z, theta = (float(v) for v in pose_measured)

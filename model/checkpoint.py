@@ -18,6 +18,7 @@ import torch
 from safetensors import SafetensorError
 from safetensors.torch import load_file, save_file
 
+from common.errors import ToolError
 from model.config import ModelConfig
 
 STATE = "state.json"
@@ -27,7 +28,7 @@ OPTIMIZER = "optimizer.safetensors"
 CONDITIONING_KEYS = ("wrench_mean", "wrench_std", "mm_per_px", "frame_px")
 
 
-class CheckpointError(ValueError):
+class CheckpointError(ToolError, ValueError):
     """A checkpoint is missing, damaged or does not fit; the message names the file."""
 
 

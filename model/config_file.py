@@ -15,11 +15,11 @@ from __future__ import annotations
 import dataclasses
 from pathlib import Path
 
-from rig.config import _Table, toml_table
-from rig.errors import ConfigError
+from common.table import Table, toml_table
+from common.errors import ConfigError
 
 
-def _fields(table: _Table, defaults) -> dict:
+def _fields(table: Table, defaults) -> dict:
     """The table's keys typed by the dataclass defaults they replace."""
     out = {}
     for f in dataclasses.fields(defaults):
@@ -52,8 +52,8 @@ def load_model_file(path: str | Path, preset_name: str | None = None):
         raise ConfigError(path, "-", "file not found") from None
     top, _ = toml_table(text, path)
     name = preset_name or top.get("preset", str, "tiny", choices=tuple(PRESETS))
-    model_fields = _fields(_Table(path, "model", top.get("model", dict, {})), PRESETS[name])
-    train_fields = _fields(_Table(path, "train", top.get("train", dict, {})), TrainConfig())
+    model_fields = _fields(Table(path, "model", top.get("model", dict, {})), PRESETS[name])
+    train_fields = _fields(Table(path, "train", top.get("train", dict, {})), TrainConfig())
     top.done()
     try:
         model_cfg = ModelConfig(**{**dataclasses.asdict(PRESETS[name]), **model_fields})

@@ -20,7 +20,7 @@ import h5py
 import numpy as np
 
 from acquisition import schema as S
-from acquisition.simulated import RIG_CONFIG_MARK
+from acquisition.schema import RIG_CONFIG_MARK
 from dataset.torch_dataset import TactileDataset, spread, uint8_tensor_to_image
 from model.inference import TrainedModel
 from model.markers import marker_error

@@ -5,7 +5,7 @@ holds the model, its EMA, the optimizer and the noise generator, so a resumed ru
 takes the same steps with the same losses as an uninterrupted one. Checkpoints are
 safetensors (no pickle): tensors in .safetensors files, the rest in JSON.
 
-Several GPUs or nodes: ``accelerate launch -m model.cli ...`` (or ``accelerate launch
+Several GPUs or nodes: ``accelerate launch -m cli.model_app ...`` (or ``accelerate launch
 $(which train) ...``) runs this same loop in each process; each takes its share of
 the step's batch (the global batch and its order are the single-process ones), the
 gradients are averaged by accelerate, and the main process logs, samples and saves.

@@ -12,7 +12,7 @@ import math
 from dataclasses import dataclass
 
 from protocols.spec import Protocol
-from rig.errors import ConfigError
+from common.errors import ConfigError
 
 AXES = ("x", "y", "z", "theta")
 

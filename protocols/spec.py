@@ -9,8 +9,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-from rig.config import _Table, toml_table
-from rig.errors import ConfigError
+from common.table import Table, toml_table
+from common.errors import ConfigError
 
 LIBRARY = Path(__file__).parent / "library"
 SENSOR_KINDS = ("rgb", "rgb_markers", "white_markers")
@@ -43,10 +43,10 @@ class Protocol:
 
 def parse_protocol(text: str, path: str = "<string>") -> Protocol:
     top, _ = toml_table(text, path)
-    meta = _Table(path, "protocol", top.get("protocol", dict))
-    motion = _Table(path, "motion", top.get("motion", dict))
-    capture = _Table(path, "capture", top.get("capture", dict, {}))
-    from rig.sim.tactile.indenters import INDENTERS
+    meta = Table(path, "protocol", top.get("protocol", dict))
+    motion = Table(path, "motion", top.get("motion", dict))
+    capture = Table(path, "capture", top.get("capture", dict, {}))
+    from objects.indenters import INDENTERS
 
     p = Protocol(
         path=path, text=text,

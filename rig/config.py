@@ -6,13 +6,12 @@ Positions are in the axis unit (mm or deg); ``position = native * scale + offset
 
 from __future__ import annotations
 
-import math
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from rig.errors import ConfigError
+from common.errors import ConfigError
+from common.table import Table, toml_table
 
 AXIS_NAMES = ("x", "y", "z", "theta")
 AXIS_DRIVERS = ("zaber", "pr_drive")
@@ -95,106 +94,6 @@ class RigConfig:
     pendant: PendantConfig | None = None
 
 
-def _bounds_text(low, high, positive: bool) -> str:
-    """'> 0', '> 0 and <= 300.0', 'in [0.001, 1.0]', '>= 0', '<= 10'."""
-    if positive and (low is None or low <= 0):
-        return "> 0" + (f" and <= {high!r}" if high is not None else "")
-    if low is not None and high is not None:
-        return f"in [{low!r}, {high!r}]"
-    return f">= {low!r}" if low is not None else f"<= {high!r}"
-
-
-def number_problem(value: Any, *, low: float | None = None, high: float | None = None, positive: bool = False,
-                   integer: bool = False) -> str | None:
-    """What is wrong with ``value`` as a finite number within the bounds ("must be > 0, got
-    -1.0"), or None when nothing is. NaN compares false with every bound, so a plain
-    ``low <= value <= high`` would let it through; inf and huge ints overflow later arithmetic."""
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or (integer and not isinstance(value, int)):
-        return f"must be {'an integer' if integer else 'a number'}, got {value!r}"
-    if not integer:
-        try:
-            value = float(value)
-        except OverflowError:  # an int too large for a float: not a physical quantity
-            return f"must be a finite number, got {value!r}"
-        if not math.isfinite(value):
-            return f"must be a finite number, got {value!r}"
-    if (positive and value <= 0) or (low is not None and value < low) or (high is not None and value > high):
-        return f"must be {_bounds_text(low, high, positive)}, got {value!r}"
-    return None
-
-
-def finite_number(path: str, key: str, value: Any, *, low: float | None = None, high: float | None = None,
-                  positive: bool = False, integer: bool = False) -> float | int:
-    """``value`` as a float (an int when ``integer``) if it is a finite number within the
-    bounds; else a one-line ConfigError naming ``path``, ``key`` and the value.
-
-    The one checker for numbers entering the project: rig config, protocols and ``--set``,
-    import metadata, split ratios, numeric command-line options (rig/cli/options.py).
-    Self-contained on purpose: it moves to a foundation package later.
-    """
-    problem = number_problem(value, low=low, high=high, positive=positive, integer=integer)
-    if problem:
-        raise ConfigError(path, key, problem)
-    return value if integer else float(value)
-
-
-class _Table:
-    """Typed access to one TOML table, with errors naming file and key."""
-
-    def __init__(self, path: str, prefix: str, data: Any):
-        if not isinstance(data, dict):
-            raise ConfigError(path, prefix, f"must be a table, got {type(data).__name__}")
-        self.path, self.prefix, self.data = path, prefix, data
-        self.used: set[str] = set()
-
-    def key(self, name: str) -> str:
-        return f"{self.prefix}.{name}" if self.prefix else name
-
-    def error(self, name: str, message: str) -> ConfigError:
-        return ConfigError(self.path, self.key(name), message)
-
-    def get(self, name: str, kind: type, default: Any = ..., *, choices=None, low=None, high=None,
-            positive: bool = False):
-        """The value of ``name``; numbers (int, float) go through :func:`finite_number`."""
-        self.used.add(name)
-        if name not in self.data:
-            if default is ...:
-                raise self.error(name, "is required" + (f" (one of {', '.join(map(repr, choices))})" if choices else ""))
-            return default
-        value = self.data[name]
-        if kind in (int, float):
-            is_number = isinstance(value, (int, float)) and not isinstance(value, bool)
-            if not is_number or (kind is int and not isinstance(value, int)):
-                raise self.error(name, f"must be {kind.__name__}, got {value!r}")
-            return finite_number(self.path, self.key(name), value, low=low, high=high, positive=positive,
-                                 integer=kind is int)
-        if not isinstance(value, kind):
-            raise self.error(name, f"must be {kind.__name__}, got {value!r}")
-        if choices is not None and value not in choices:
-            raise self.error(name, f"must be one of {', '.join(map(repr, choices))}, got {value!r}")
-        return value
-
-    def vector(self, name: str, n: int, default: Any = ..., *, low=None, high=None,
-               positive: bool = False) -> tuple[float, ...]:
-        """A list of ``n`` numbers, each checked like :meth:`get` (key ``name[i]``)."""
-        self.used.add(name)
-        if name not in self.data:
-            if default is ...:
-                raise self.error(name, f"is required (a list of {n} numbers)")
-            return default
-        value = self.data[name]
-        if not isinstance(value, list) or len(value) != n or not all(
-                isinstance(v, (int, float)) and not isinstance(v, bool) for v in value):
-            raise self.error(name, f"must be a list of {n} numbers, got {value!r}")
-        return tuple(finite_number(self.path, f"{self.key(name)}[{i}]", v, low=low, high=high, positive=positive)
-                     for i, v in enumerate(value))
-
-    def done(self) -> None:
-        unknown = sorted(set(self.data) - self.used)
-        if unknown:
-            raise self.error(unknown[0], f"unknown key; expected one of {', '.join(sorted(self.used))}")
-
-
 # Physical bounds of a rig config. Each is far outside any sane setting but close enough
 # that a typo (or NaN/inf, refused by finite_number) cannot disarm a limit or overflow a
 # conversion to native units.
@@ -212,7 +111,7 @@ MAX_PULSES_PER_REV = 0xFFFF  # the drive holds pulses/rev in one 16-bit register
 
 
 def _axis(path: str, name: str, data: Any) -> AxisConfig:
-    t = _Table(path, f"axes.{name}", data)
+    t = Table(path, f"axes.{name}", data)
     driver = t.get("driver", str, choices=AXIS_DRIVERS)
     unit = t.get("unit", str, "deg" if name == "theta" else "mm", choices=("mm", "deg"))
     travel = t.vector("travel", 2, low=-TRAVEL_LIMIT, high=TRAVEL_LIMIT)
@@ -252,7 +151,7 @@ def _axis(path: str, name: str, data: Any) -> AxisConfig:
 
 
 def _gauge(path: str, data: Any) -> GaugeConfig:
-    t = _Table(path, "gauge", data)
+    t = Table(path, "gauge", data)
     driver = t.get("driver", str, choices=GAUGE_DRIVERS)
     cfg = GaugeConfig(
         driver=driver,
@@ -273,7 +172,7 @@ def _gauge(path: str, data: Any) -> GaugeConfig:
 
 
 def _camera(path: str, data: Any) -> CameraConfig:
-    t = _Table(path, "camera", data)
+    t = Table(path, "camera", data)
     driver = t.get("driver", str, choices=CAMERA_DRIVERS)
     cfg = CameraConfig(
         driver=driver,
@@ -291,7 +190,7 @@ def _camera(path: str, data: Any) -> CameraConfig:
 
 
 def _safety(path: str, data: Any) -> SafetyConfig:
-    t = _Table(path, "safety", data)
+    t = Table(path, "safety", data)
     cfg = SafetyConfig(
         max_force_N=t.vector("max_force_N", 3, positive=True, high=MAX_FORCE_LIMIT_N),
         max_torque_Nmm=t.vector("max_torque_Nmm", 3, positive=True, high=MAX_TORQUE_LIMIT_NMM),
@@ -302,7 +201,7 @@ def _safety(path: str, data: Any) -> SafetyConfig:
 
 
 def _pendant(path: str, data: Any) -> PendantConfig:
-    t = _Table(path, "pendant", data)
+    t = Table(path, "pendant", data)
     cfg = PendantConfig(
         vendor_id=t.get("vendor_id", int, None, low=0, high=0xFFFF),
         product_id=t.get("product_id", int, None, low=0, high=0xFFFF),
@@ -312,21 +211,12 @@ def _pendant(path: str, data: Any) -> PendantConfig:
     return cfg
 
 
-def toml_table(text: str, path: str) -> tuple[_Table, dict]:
-    """The top-level table of a TOML text; a syntax error names the file."""
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(path, "-", f"not valid TOML: {exc}") from exc
-    return _Table(path, "", data), data
-
-
 def parse_config(text: str, path: str = "<string>") -> RigConfig:
     top, data = toml_table(text, path)
-    rig = _Table(path, "rig", top.get("rig", dict, {}))
+    rig = Table(path, "rig", top.get("rig", dict, {}))
     name = rig.get("name", str, Path(path).stem)
     rig.done()
-    axes_table = _Table(path, "axes", top.get("axes", dict, {}))
+    axes_table = Table(path, "axes", top.get("axes", dict, {}))
     axes = {}
     for axis_name in axes_table.data:
         if axis_name not in AXIS_NAMES:

@@ -6,21 +6,11 @@ so a message in a log is enough to know which cable to look at.
 
 from __future__ import annotations
 
-
-class RigError(Exception):
-    """Base class of everything this package raises on purpose."""
+from common.errors import ToolError
 
 
-class ConfigError(RigError):
-    """A rig configuration file is missing, malformed or out of range.
-
-    The message names the file, the key and what was expected.
-    """
-
-    def __init__(self, path: str, key: str, message: str):
-        self.path = path
-        self.key = key
-        super().__init__(f"{path}: [{key}] {message}")
+class RigError(ToolError):
+    """Base class of what the rig layer (devices, motion, safety) raises on purpose."""
 
 
 class DeviceError(RigError):

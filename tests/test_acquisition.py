@@ -13,7 +13,7 @@ import pytest
 from acquisition import schema as S
 from acquisition.executor import Acquisition, ProtocolRefused
 from acquisition.run_file import open_for_reading
-from acquisition.simulated import monitor_interval_s, simulated_rig_for
+from cli.simulated import monitor_interval_s, simulated_rig_for
 from protocols.plan import PHASES, Plan
 from protocols.spec import load_protocol, parse_protocol
 from rig.config import SafetyConfig
@@ -237,7 +237,7 @@ def test_sigterm_stops_records_and_closes(tmp_path):
 def test_cli_dry_run_refuses_a_protocol_beyond_travel(tmp_path):
     from typer.testing import CliRunner
 
-    from rig.cli.main import app
+    from cli.rig_app import app
 
     wide = tmp_path / "wide.toml"
     wide.write_text(QUICK.replace("max_depth_mm = 0.8", "max_depth_mm = 8.0"))
@@ -250,7 +250,7 @@ def test_cli_dry_run_refuses_a_protocol_beyond_travel(tmp_path):
 def test_cli_malformed_protocol_names_file_and_key(tmp_path):
     from typer.testing import CliRunner
 
-    from rig.cli.main import app
+    from cli.rig_app import app
 
     bad = tmp_path / "bad.toml"
     bad.write_text(QUICK.replace('object = "sphere10mm"', 'object = 7'))

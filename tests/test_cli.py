@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 from typer.testing import CliRunner
 
-from rig.cli.main import app
+from cli.rig_app import app
 
 runner = CliRunner()
 
@@ -72,7 +72,7 @@ def test_home_and_zero_sim():
 
 
 def test_help_does_not_import_heavy_modules():
-    code = ("import sys; from rig.cli.main import app; "
+    code = ("import sys; from cli.rig_app import app; "
             "heavy = [m for m in ('torch', 'diffusers', 'cv2', 'pymodbus', 'serial', 'numpy', 'h5py') if m in sys.modules]; "
             "print(','.join(heavy))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.strip()

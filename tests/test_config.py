@@ -3,7 +3,7 @@
 import pytest
 
 from rig.config import load_config, parse_config
-from rig.errors import ConfigError
+from common.errors import ConfigError
 from rig.sim.rig_sim import SimulatedRig
 
 GOOD = """
@@ -111,7 +111,7 @@ def test_documented_example_config_is_valid():
     (300.5, "must be > 0 and <= 300.0, got 300.5"),
 ])
 def test_finite_number_refuses_what_comparisons_let_through(value, words):
-    from rig.config import finite_number
+    from common.table import finite_number
 
     with pytest.raises(ConfigError) as err:
         finite_number("lab/rig.toml", "safety.max_force_N[2]", value, positive=True, high=300.0)

@@ -9,12 +9,12 @@ from typer.testing import CliRunner
 
 from acquisition import schema as S
 from acquisition.run_file import RunHeader, RunWriter
-from dataset.cli import app
+from cli.dataset_app import app
 from dataset.condition import place_object
 from dataset.runs import summarize, validate
 from dataset.split import SplitError, load_split, make_split, parse_ratios
 from protocols.plan import PHASES
-from rig.sim.tactile.indenters import get_indenter
+from objects.indenters import get_indenter
 
 runner = CliRunner()
 
@@ -164,7 +164,7 @@ def test_dataset_commands_do_not_import_torch():
     import subprocess
     import sys
 
-    code = "import sys; from dataset.cli import app; import dataset.runs, dataset.split; print('torch' in sys.modules)"
+    code = "import sys; from cli.dataset_app import app; import dataset.runs, dataset.split; print('torch' in sys.modules)"
     assert subprocess.run([sys.executable, "-c", code], capture_output=True, text=True).stdout.strip() == "False"
 
 

@@ -4,9 +4,9 @@ where the option has no fixed one to show."""
 import pytest
 import typer
 
-from dataset.cli import app as dataset_app
-from model.cli import app as train_app, evaluate_app, generate_app
-from rig.cli.main import app as rig_app
+from cli.dataset_app import app as dataset_app
+from cli.model_app import app as train_app, evaluate_app, generate_app
+from cli.rig_app import app as rig_app
 
 APPS = {"rig": rig_app, "dataset": dataset_app, "train": train_app, "generate": generate_app, "evaluate": evaluate_app}
 

@@ -28,14 +28,14 @@ from hypothesis import strategies as st
 from typer.testing import CliRunner
 
 from acquisition.run_file import RunFileError
-from dataset.cli import app as dataset_app
+from cli.dataset_app import app as dataset_app
 from dataset.interchange import import_run
 from dataset.split import SplitError, make_split, parse_ratios
 from protocols.plan import MAX_FRAMES, MAX_LEVELS, MAX_STEPS, Plan
 from protocols.spec import load_protocol, parse_protocol
-from rig.cli.main import app as rig_app
+from cli.rig_app import app as rig_app
 from rig.config import RigConfig, parse_config
-from rig.errors import ConfigError
+from common.errors import ConfigError
 from rig.sim.rig_sim import SimulatedRig
 
 runner = CliRunner()
@@ -129,12 +129,12 @@ QUICK_SETTINGS = ["--set", "motion.max_depth_mm=0.4", "--set", "motion.speed_mm_
 @pytest.fixture
 def no_devices(monkeypatch):
     """Any attempt to open the simulated rig fails the test: --out is checked first."""
-    import acquisition.simulated
+    import cli.simulated
 
     def opened(*_, **__):
         raise AssertionError("a device was opened before --out was checked")
 
-    monkeypatch.setattr(acquisition.simulated, "simulated_rig_for", opened)
+    monkeypatch.setattr(cli.simulated, "simulated_rig_for", opened)
 
 
 def test_out_onto_an_existing_run_is_refused_and_untouched(tmp_path, no_devices):
@@ -159,16 +159,21 @@ def test_out_into_a_read_only_directory_is_refused(no_devices):
     """Root writes anywhere, so as root the command runs with effective uid nobody (65534):
     the directory is then truly read-only for it (the kernel says so, not a mock)."""
     import acquisition.executor  # noqa: F401 - imported while still allowed to read every file
-    import rig.cli.protocol_cmds  # noqa: F401
+    import cli.protocol_cmds  # noqa: F401
 
     folder = Path(tempfile.mkdtemp(prefix="ro-run-"))  # in /tmp: every ancestor searchable by nobody
+    # the protocol file beside it, readable by nobody wherever the checkout is (a 0700 clone, say)
+    protocol = Path(tempfile.mkdtemp(prefix="ro-protocol-")) / "sphere10mm.toml"
+    protocol.write_text(load_protocol("sphere10mm").text)
+    protocol.parent.chmod(0o755)
+    protocol.chmod(0o644)
     folder.chmod(0o555)  # root's: read-only to nobody, and to anyone without root
     as_root = os.geteuid() == 0
     if as_root:
         os.setegid(65534)
         os.seteuid(65534)
     try:
-        result = runner.invoke(rig_app, ["run-protocol", "sphere10mm", "--sim", "--out", str(folder / "run.h5"),
+        result = runner.invoke(rig_app, ["run-protocol", str(protocol), "--sim", "--out", str(folder / "run.h5"),
                                          *QUICK_SETTINGS])
     finally:
         if as_root:
@@ -183,6 +188,8 @@ def test_out_into_a_read_only_directory_is_refused(no_devices):
         for child in folder.iterdir():
             child.unlink()
         folder.rmdir()
+        protocol.unlink()
+        protocol.parent.rmdir()
 
 
 # ---------------------------------------------------------------------------------------------

@@ -43,9 +43,9 @@ def test_shape_mismatch_is_an_error(pair):
 
 
 def test_marker_error_measures_a_known_displacement():
-    from rig.sim.contact import Pose
-    from rig.sim.tactile.optics import OpticsSpec
-    from rig.sim.tactile.scene import Scene
+    from objects.pose import Pose
+    from sensor_sim.light import OpticsSpec
+    from sensor_sim.scene import Scene
 
     scene = Scene("sphere10mm", "rgb_markers", optics=OpticsSpec(kind="rgb_markers", noise_std=0.0))
     still = scene.frame(Pose(0, 0, 0.5, 0)).image  # no contact: markers at rest
@@ -65,9 +65,9 @@ def test_marker_flow_and_its_figure(tmp_path):
     from model.evaluate import Evaluation, Row
     from model.figures import marker_flow_figure
     from model.markers import marker_flow
-    from rig.sim.contact import Pose
-    from rig.sim.tactile.optics import OpticsSpec
-    from rig.sim.tactile.scene import Scene
+    from objects.pose import Pose
+    from sensor_sim.light import OpticsSpec
+    from sensor_sim.scene import Scene
 
     scene = Scene("sphere10mm", "rgb_markers", optics=OpticsSpec(kind="rgb_markers", noise_std=0.0))
     still = scene.frame(Pose(0, 0, 0.5, 0)).image

@@ -96,7 +96,7 @@ def make_split_dir(tmp_path, n=24, size=16):
     from acquisition.run_file import RunHeader, RunWriter
     from dataset.split import make_split
     from protocols.plan import PHASES
-    from rig.sim.tactile.indenters import get_indenter
+    from objects.indenters import get_indenter
 
     rng = np.random.default_rng(0)
     header = RunHeader("t", "", "", "sphere10mm", "", "rgb", 14 / size, 1.0, n, (0, 0, 0, 0), PHASES)
@@ -193,9 +193,10 @@ def test_physics_render_reproduces_a_simulated_frame(tmp_path):
 
     from model.baseline import render_frames
     from model.metrics import image_metrics
-    from rig.sim.contact import Pose
-    from rig.sim.rig_sim import rig_contact
-    from rig.sim.tactile.optics import OpticsSpec, Renderer
+    from objects.pose import Pose
+    from sensor_sim.world_contact import rig_contact
+    from sensor_sim.light import OpticsSpec
+    from sensor_sim.optics import Renderer
 
     contact = rig_contact("sphere10mm")
     renderer = Renderer(OpticsSpec(kind="rgb", height_px=64, width_px=64, noise_std=1.0), contact.solver.geometry)
@@ -213,7 +214,7 @@ def _one_frame_run(tmp_path, frame, reference, pose):
 
     from acquisition.run_file import RunHeader, RunWriter
     from protocols.plan import PHASES
-    from rig.sim.tactile.indenters import get_indenter
+    from objects.indenters import get_indenter
 
     size = frame.shape[0]
     header = RunHeader("t", "", "", "sphere10mm", "", "rgb", 14 / size, 1.0, 1, (0, 0, 0, 0), PHASES)
@@ -244,7 +245,7 @@ def test_train_command_reads_a_model_toml_and_names_bad_keys(tmp_path):
 
     from typer.testing import CliRunner
 
-    from model.cli import app
+    from cli.model_app import app
 
     split = make_split_dir(tmp_path)
     good = tmp_path / "model.toml"
@@ -323,7 +324,7 @@ def test_two_processes_train_through_accelerate(tmp_path):
         s.bind(("127.0.0.1", 0))
         port = s.getsockname()[1]
     cmd = [str(torchrun), "--nproc_per_node", "2", "--master_addr", "127.0.0.1", "--master_port", str(port),
-           "-m", "model.cli", "--data", str(split), "--out", str(tmp_path / "run"), "--config", str(cfg),
+           "-m", "cli.model_app", "--data", str(split), "--out", str(tmp_path / "run"), "--config", str(cfg),
            "--steps", "4", "--batch-size", "4", "--sample-every", "2", "--device", "cpu"]
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
                             cwd=Path(__file__).parent.parent, start_new_session=True)
@@ -345,7 +346,7 @@ def test_generate_and_evaluate_commands(tmp_path):
     import numpy as np
     from typer.testing import CliRunner
 
-    from model.cli import evaluate_app, generate_app
+    from cli.model_app import evaluate_app, generate_app
 
     split, run = trained_run(tmp_path, 2)
     obj = tmp_path / "obj.png"

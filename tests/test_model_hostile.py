@@ -32,7 +32,7 @@ def _copy(run, tmp_path):
 
 
 def _generate(run, obj, out):
-    from model.cli import generate_app
+    from cli.model_app import generate_app
 
     return CliRunner().invoke(generate_app, ["--checkpoint", str(run), "--object", str(obj), "--wrench",
                                              "0,0,2,0,0,0", "--out", str(out), "--steps", "2"])
@@ -110,7 +110,7 @@ def test_generate_out_that_cannot_be_written_is_an_error(run, tmp_path):
 
 
 def test_evaluate_on_a_missing_split_names_it(run, tmp_path):
-    from model.cli import evaluate_app
+    from cli.model_app import evaluate_app
 
     _, trained, _ = run
     r = CliRunner().invoke(evaluate_app, ["--checkpoint", str(trained), "--split", str(tmp_path / "nowhere"),
@@ -120,7 +120,7 @@ def test_evaluate_on_a_missing_split_names_it(run, tmp_path):
 
 
 def test_generate_takes_a_library_object_or_a_run_file_and_a_size(run, tmp_path):
-    from model.cli import generate_app
+    from cli.model_app import generate_app
 
     split, trained, _ = run
     run_file = json.loads((split / "split.json").read_text())["runs"][0]["path"]

@@ -19,10 +19,10 @@ import rig.rig as rig_module
 from acquisition import schema as S
 from acquisition.executor import Acquisition
 from acquisition.run_file import RunWriter, open_for_reading
-from acquisition.simulated import monitor_interval_s, simulated_rig_for
+from cli.simulated import monitor_interval_s, simulated_rig_for
 from protocols.plan import Plan
 from protocols.spec import load_protocol
-from rig.cli.main import app
+from cli.rig_app import app
 from rig.clock import ManualClock
 from rig.errors import ForceLimitExceeded, SafetyError
 from rig.motion import AXIS_MOTION_METHODS, active_sessions
@@ -122,7 +122,7 @@ def test_every_moving_command_goes_through_the_session(guarded_axes, args, stdin
 
 def test_pendant_jogging_goes_through_the_session(guarded_axes):
     from rig.clock import ScaledClock
-    from rig.cli.interactive import jog_with_pendant
+    from cli.interactive import jog_with_pendant
     from rig.drivers.spacemouse import SpaceMouse
     from test_spacemouse import FakeHid
 
@@ -206,7 +206,7 @@ def test_an_overload_in_the_last_poll_before_idle_trips(step_mm):
 def test_the_cli_exits_non_zero_on_an_end_of_move_overload(monkeypatch, step):
     import contextlib
 
-    import rig.cli.session as session
+    import cli.session as session
 
     clock = ManualClock()
     with SimulatedRig(clock) as sim:

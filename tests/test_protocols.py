@@ -6,7 +6,7 @@ import pytest
 
 from protocols.plan import Plan, expand
 from protocols.spec import load_protocol, parse_protocol, protocol_names
-from rig.errors import ConfigError
+from common.errors import ConfigError
 
 
 def test_library_has_the_papers_objects():

@@ -21,11 +21,11 @@ from typer.testing import CliRunner
 from acquisition import schema as S
 from acquisition.executor import Acquisition
 from acquisition.run_file import RunFileError, RunLocked, RunWriter, open_for_reading
-from acquisition.simulated import monitor_interval_s, simulated_rig_for
-from dataset.cli import app as dataset_app
+from cli.simulated import monitor_interval_s, simulated_rig_for
+from cli.dataset_app import app as dataset_app
 from dataset.runs import check_run, validate
 from protocols.plan import Plan
-from rig.cli.main import app as rig_app
+from cli.rig_app import app as rig_app
 from test_acquisition import QUICK, ctrl_c, interrupt_at, run
 from test_dataset import make_run
 

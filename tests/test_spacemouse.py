@@ -68,7 +68,7 @@ def test_poll_applies_every_waiting_report():
 
 def test_pendant_jog_moves_the_simulated_axis():
     from rig.clock import ScaledClock
-    from rig.cli.interactive import jog_with_pendant
+    from cli.interactive import jog_with_pendant
     from rig.rig import Rig
     from rig.sim.rig_sim import SimulatedRig
 

@@ -6,17 +6,17 @@ import math
 import numpy as np
 import pytest
 
-from rig.sim.contact import Pose
-from rig.sim.tactile.backing import WINDOW_E_STAR_MPa
-from rig.sim.tactile.contact import SensorGeometry, TactileContact
-from rig.sim.tactile.elastomer import Elastomer, PhysicsInputError
-from rig.sim.tactile.indenters import INDENTERS, get_indenter
-from rig.sim.tactile.kernels import Kernels, cell_integrals, layer_factor
-from rig.sim.tactile.normal_contact import solve_normal
-from rig.sim.tactile.optics import OpticsSpec
-from rig.sim.tactile.scene import Scene
-from rig.sim.tactile.tangential_contact import solve_tangential
-from rig.sim.tactile.world_contact import ElastomerContact
+from objects.pose import Pose
+from sensor_sim.backing import WINDOW_E_STAR_MPa
+from sensor_sim.contact import SensorGeometry, TactileContact
+from sensor_sim.elastomer import Elastomer, PhysicsInputError
+from objects.indenters import INDENTERS, get_indenter
+from sensor_sim.kernels import Kernels, cell_integrals, layer_factor
+from sensor_sim.normal_contact import solve_normal
+from sensor_sim.light import OpticsSpec
+from sensor_sim.scene import Scene
+from sensor_sim.tangential_contact import solve_tangential
+from sensor_sim.world_contact import ElastomerContact
 
 HALF_SPACE = Elastomer(E_MPa=1.0, nu=0.5, thickness_mm=math.inf, friction=0.5)
 
@@ -275,7 +275,7 @@ def test_a_tolerance_beyond_reach_stops_early_as_not_converged():
 
 def test_unconverged_solves_are_counted_and_warned_once(caplog):
     contact = ElastomerContact("sphere10mm", tol=1e-30)
-    with caplog.at_level(logging.WARNING, logger="rig.sim.tactile.world_contact"):
+    with caplog.at_level(logging.WARNING, logger="sensor_sim.world_contact"):
         results = [contact.solve(Pose(0.0, 0.0, -d, 0.0)) for d in (0.3, 0.5, 0.7)]
     assert [r.converged for r in results] == [False] * 3
     assert all(0 < r.normal_iterations < 500 and r.normal_residual > 0 for r in results)

@@ -8,12 +8,12 @@ import cv2
 import numpy as np
 import pytest
 
-from rig.sim.contact import Pose
-from rig.sim.tactile.calibration import (CalibrationError, Contact, Press, find_contact, fit_optics, refine_contact,
-                                         render_press)
-from rig.sim.tactile.optics import SENSOR_KINDS, LightModel, OpticsSpec, Renderer, soft_bound
-from rig.sim.tactile.profile import ProfileError, default_profile, load_profile, save_profile
-from rig.sim.tactile.scene import Scene
+from objects.pose import Pose
+from sensor_sim.calibration import CalibrationError, Contact, Press, find_contact, fit_optics, refine_contact, render_press
+from sensor_sim.light import SENSOR_KINDS, LightModel, OpticsSpec, soft_bound
+from sensor_sim.optics import Renderer
+from sensor_sim.profile import ProfileError, default_profile, load_profile, save_profile
+from sensor_sim.scene import Scene
 
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "data" / "gelsight_mini"
 LIBRARY = Path(__file__).resolve().parents[1] / "protocols" / "library"

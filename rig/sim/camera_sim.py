@@ -8,7 +8,8 @@ contact model has no fields (the spring placeholder) shows the no-contact frame.
 from __future__ import annotations
 
 from rig.clock import Clock
-from rig.sim.tactile.optics import OpticsSpec, Renderer
+from sensor_sim.light import OpticsSpec
+from sensor_sim.optics import Renderer
 from rig.sim.world import SimWorld
 
 

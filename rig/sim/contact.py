@@ -2,9 +2,10 @@
 
 ``ContactModel.wrench(pose)`` returns the load the indenter applies to the gel,
 [Fx, Fy, Fz] N and [Mx, My, Mz] N·mm in the sensor frame (Fz > 0 pressing in).
-``SpringContact`` is the placeholder until the elastomer contact solver lands
-(issue 3): Hertz-like normal force, a stick-slip tangential spring with Coulomb
-friction, and a torsional spring with its slip limit.
+``SpringContact`` is a closed-form stand-in for the elastomer solver
+(``sensor_sim.world_contact.ElastomerContact``) where a test needs speed, not an
+image: Hertz-like normal force, a stick-slip tangential spring with Coulomb friction,
+and a torsional spring with its slip limit.
 """
 
 from __future__ import annotations
@@ -16,19 +17,7 @@ from typing import Protocol
 
 import numpy as np
 
-
-@dataclass(frozen=True)
-class Pose:
-    """Indenter pose relative to the contact point: mm, mm, mm (negative = pressed in), deg."""
-
-    x_mm: float
-    y_mm: float
-    z_mm: float
-    theta_deg: float
-
-    @property
-    def depth_mm(self) -> float:
-        return max(0.0, -self.z_mm)
+from objects.pose import Pose
 
 
 class ContactModel(Protocol):

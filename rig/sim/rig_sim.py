@@ -18,6 +18,7 @@ from rig.sim.modbus_rtu import RtuServer
 from rig.sim.pr_drive_sim import PrDriveSim
 from rig.sim.world import SimWorld, WorldSpec
 from rig.sim.zaber_sim import ZaberChainSim, ZaberDeviceSim
+from sensor_sim.world_contact import rig_contact
 
 ZABER_MICROSTEP_MM = 0.047625e-3  # a common Zaber linear-stage microstep
 THETA_PULSES_PER_REV = 10000
@@ -28,15 +29,6 @@ THETA_DEVICE_ID = 1
 # simulated time (rig/transport/peer.py), so machine load cannot trip it; a client of
 # `rig sim serve` in another process waits this long in real time, as on hardware.
 DEVICE_TIMEOUT_S = 0.3
-
-
-def rig_contact(indenter: str):
-    """The simulated rig's gel: 96 cells over the 14 mm pad (0.146 mm), well under 1 %
-    force error for these contacts (docs/simulator.md) at half the cost of 128."""
-    from rig.sim.tactile.contact import SensorGeometry
-    from rig.sim.tactile.world_contact import ElastomerContact
-
-    return ElastomerContact(indenter, geometry=SensorGeometry(cells=96))
 
 
 class SimulatedRig:

@@ -11,7 +11,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from rig.clock import Clock
-from rig.sim.contact import ContactModel, Pose
+from rig.sim.contact import ContactModel
+from objects.pose import Pose
 from rig.sim.stage import SimStage, StageSpec
 
 AXES = ("x", "y", "z", "theta")
@@ -53,7 +54,7 @@ class SimWorld:
         self.clock = clock
         self.spec = spec or WorldSpec()
         if contact is None:
-            from rig.sim.tactile.world_contact import ElastomerContact
+            from sensor_sim.world_contact import ElastomerContact
 
             contact = ElastomerContact("sphere10mm")
         self.contact = contact

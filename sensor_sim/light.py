@@ -1,7 +1,7 @@
 """The sensor's light model: colour change as a bounded function of the gel's surface normal.
 
 Parameters only (what a sensor profile stores and the calibration fits); the renderer
-that turns mechanics fields into frames with them is ``rig.sim.tactile.optics``.
+that turns mechanics fields into frames with them is ``sensor_sim.optics``.
 """
 
 from __future__ import annotations

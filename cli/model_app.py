@@ -17,11 +17,11 @@ def one_line_errors(fn):
     @functools.wraps(fn)
     def wrapper(*args, **kwargs):
         from model.checkpoint import CheckpointError
-        from rig.errors import RigError
+        from common.errors import ToolError
 
         try:
             return fn(*args, **kwargs)
-        except (RigError, CheckpointError, ValueError, KeyError, OSError) as exc:
+        except (ToolError, CheckpointError, ValueError, KeyError, OSError) as exc:
             message = exc.args[0] if isinstance(exc, KeyError) and exc.args else exc
             typer.secho(f"error: {message}", fg=typer.colors.RED, err=True)
             raise typer.Exit(1) from None
@@ -60,7 +60,7 @@ def train(
 ):
     """Train the denoiser; progress shows the loss and images/s; checkpoints are safetensors.
 
-    Several GPUs: `accelerate launch -m model.cli --data ... --out ...` runs this same command.
+    Several GPUs: `accelerate launch -m cli.model_app --data ... --out ...` runs this same command.
     """
     import dataclasses
 
@@ -183,7 +183,7 @@ def _object_image(source: str, frame_px: int, mm_per_px: float):
         if img is None:
             raise ValueError(f"--object {path}: cannot read it as an image")
         return img
-    from rig.sim.tactile.indenters import INDENTERS, get_indenter
+    from objects.indenters import INDENTERS, get_indenter
 
     if source not in INDENTERS:
         raise ValueError(f"--object {source!r}: not an image or run file, nor a library object "
@@ -260,5 +260,5 @@ def evaluate_main() -> None:
     evaluate_app()
 
 
-if __name__ == "__main__":  # `accelerate launch -m model.cli ...`
+if __name__ == "__main__":  # `accelerate launch -m cli.model_app ...`
     main()

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import typer
 
-from rig.cli.keys import keys
+from cli.keys import keys
 from rig.errors import SafetyError
 
 HELP = "keys: + / up = step up, - / down = step down, ] = step x10, [ = step /10, q = quit"

@@ -6,7 +6,7 @@ import contextlib
 import os
 from pathlib import Path
 
-from rig.errors import ConfigError
+from common.errors import ConfigError
 
 DEFAULT_CONFIG = "rig.toml"
 

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from rig.sim.tactile.kernels import Kernels
+from sensor_sim.kernels import Kernels
 
 REFRESH = 8  # iterations between full recomputations of the displacement
 # Stalled: the residual has not halved in this many iterations. Four refresh cycles:

@@ -9,7 +9,7 @@ import typer
 from rich.console import Console
 from rich.table import Table
 
-from rig.errors import ConfigError
+from common.errors import ConfigError
 
 console = Console()
 
@@ -110,7 +110,7 @@ def run_protocol(name: str, *, out: Path | None, resume: Path | None, dry_run: b
             with SimulatedRig() as simulated:
                 rig_config = simulated.config()
         else:
-            from rig.cli.session import resolve_config_path
+            from cli.session import resolve_config_path
             from rig.config import load_config
 
             rig_config = load_config(resolve_config_path(config))
@@ -132,7 +132,7 @@ def run_protocol(name: str, *, out: Path | None, resume: Path | None, dry_run: b
 
 
 def _run_sim(protocol, plan, path, resume, origin) -> None:
-    from acquisition.simulated import monitor_interval_s, simulated_rig_for
+    from cli.simulated import monitor_interval_s, simulated_rig_for
 
     with simulated_rig_for(protocol) as (rig, simulated, header):
         _execute(rig, plan, path, resume, origin, header, monitor_interval_s=monitor_interval_s(protocol),
@@ -140,7 +140,7 @@ def _run_sim(protocol, plan, path, resume, origin) -> None:
 
 
 def _run_hw(protocol, plan, path, resume, origin, config) -> None:
-    from rig.cli.session import resolve_config_path
+    from cli.session import resolve_config_path
     from rig.config import load_config
     from rig.rig import Rig
 

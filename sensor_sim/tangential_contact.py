@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from rig.sim.tactile.kernels import Kernels
+from sensor_sim.kernels import Kernels
 
 # Stalled: the residual has not halved in this many iterations. FISTA's slowest
 # healthy case measured (a twist at 128²) halves it every ~130 iterations; on the

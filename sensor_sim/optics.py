@@ -2,7 +2,7 @@
 
 - ``rgb``: coloured lights from the sides; the colour change is looked up from the
   surface normal in a bounded table (``LightModel``), fitted to real presses by
-  ``rig.sim.tactile.calibration.fit_optics`` and shipped in the sensor profile.
+  ``sensor_sim.calibration.fit_optics`` and shipped in the sensor profile.
 - ``rgb_markers``: the same with a printed marker grid.
 - ``white_markers``: white light: a grey image darkened where the gel tilts, with markers.
 
@@ -17,10 +17,10 @@ import cv2
 import numpy as np
 from scipy.ndimage import map_coordinates
 
-from rig.sim.tactile.contact import SensorGeometry
-from rig.sim.tactile.light import (  # noqa: F401  (re-exported: the optics' public names)
-    SENSOR_KINDS, SHADINGS, LightModel, OpticsSpec, normal_lookup, soft_bound)
-from rig.sim.tactile.profile import default_profile
+from sensor_sim.contact import SensorGeometry
+from sensor_sim.light import LightModel, OpticsSpec, soft_bound
+from sensor_sim.profile import default_profile
+
 
 class Renderer:
     """Renders mechanics fields into frames with a sensor profile's optics.

@@ -19,7 +19,7 @@ import math
 import numpy as np
 import scipy.fft as sfft
 
-from rig.sim.tactile.elastomer import Elastomer
+from sensor_sim.elastomer import Elastomer
 
 
 def _xasinh(x, y):

@@ -18,13 +18,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from rig.sim.contact import Pose
-from rig.sim.tactile.backing import NO_BACKING, BackingLoad, backing_load, gel_separation
-from rig.sim.tactile.elastomer import Elastomer, PhysicsInputError
-from rig.sim.tactile.indenters import Indenter
-from rig.sim.tactile.kernels import kernels_for
-from rig.sim.tactile.normal_contact import NormalSolution, solve_normal
-from rig.sim.tactile.tangential_contact import TangentialSolution, solve_tangential
+from objects.pose import Pose
+from sensor_sim.backing import NO_BACKING, BackingLoad, backing_load, gel_separation
+from sensor_sim.elastomer import Elastomer, PhysicsInputError
+from objects.indenters import Indenter
+from sensor_sim.kernels import kernels_for
+from sensor_sim.normal_contact import NormalSolution, solve_normal
+from sensor_sim.tangential_contact import TangentialSolution, solve_tangential
 
 
 @dataclass(frozen=True)

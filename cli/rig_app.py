@@ -15,7 +15,7 @@ from typing import Annotated, Optional
 
 import typer
 
-from rig.cli.options import number
+from cli.options import number
 from rig.config import MAX_FORCE_LIMIT_N, MAX_SPEED, TRAVEL_LIMIT
 
 app = typer.Typer(help="Control the tactile-sensing rig: stages, force gauge, camera. "
@@ -63,14 +63,14 @@ def friendly_errors(fn):
 
     @functools.wraps(fn)
     def wrapper(*args, **kwargs):
-        from rig.errors import RigError
+        from common.errors import ToolError
         from rig.motion import MotionInterrupted
 
         try:
             return fn(*args, **kwargs)
         except (typer.Exit, typer.Abort, typer.TyperException):
             raise  # typer's own ways out (a command's exit code, a bad option)
-        except RigError as exc:
+        except ToolError as exc:
             _fail(str(exc))
         except (FileNotFoundError, ValueError) as exc:
             _fail(str(exc))
@@ -97,8 +97,8 @@ def _say(text: str) -> None:
 @friendly_errors
 def status(config: ConfigOpt = None, sim: SimOpt = False):
     """Print every axis (position, state, homed, warnings) and the current wrench."""
-    from rig.cli.views import print_status
-    from rig.cli.session import open_rig
+    from cli.views import print_status
+    from cli.session import open_rig
 
     with open_rig(config, sim) as rig:
         print_status(rig)
@@ -123,7 +123,7 @@ def jog(
     sim: SimOpt = False,
 ):
     """Jog one axis: by --step, to --to, or interactively (keys + and - or arrows; q quits)."""
-    from rig.cli.session import open_rig
+    from cli.session import open_rig
 
     if step is not None and to is not None:
         _fail("give --step or --to, not both")
@@ -134,7 +134,7 @@ def jog(
                 final = m.jog(axis.value, step=step, to=to, speed=speed)
             typer.echo(f"{axis.value} = {final:.4f} {unit}")
             return
-        from rig.cli.interactive import jog_with_keys, jog_with_pendant
+        from cli.interactive import jog_with_keys, jog_with_pendant
 
         with rig.motion("jog") as m:
             if pendant:
@@ -152,7 +152,7 @@ def home(
     sim: SimOpt = False,
 ):
     """Home axes (z first, so the indenter lifts clear before anything slides)."""
-    from rig.cli.session import open_rig
+    from cli.session import open_rig
 
     names = tuple(a.value for a in axis) if axis else None
     with open_rig(config, sim, axes=names) as rig:
@@ -170,7 +170,7 @@ def zero(
     sim: SimOpt = False,
 ):
     """Tare the force gauge: average unloaded samples and print the bias removed (N, N·mm)."""
-    from rig.cli.session import open_rig
+    from cli.session import open_rig
     from rig.types import WRENCH_COMPONENTS, WRENCH_UNITS
 
     with open_rig(config, sim, axes=()) as rig:
@@ -193,7 +193,7 @@ def find_contact_cmd(
     sim: SimOpt = False,
 ):
     """Lower z under the force limits until the indenter touches the gel; print the contact point."""
-    from rig.cli.session import open_rig
+    from cli.session import open_rig
     from rig.contact_search import find_contact
 
     with open_rig(config, sim, axes=("z",)) as rig:
@@ -237,7 +237,7 @@ def sim_serve(
 @friendly_errors
 def protocols_list():
     """List the library's protocols with their duration and frame count."""
-    from rig.cli.protocol_cmds import list_protocols
+    from cli.protocol_cmds import list_protocols
 
     list_protocols()
 
@@ -253,7 +253,7 @@ SetOpt = Annotated[Optional[list[str]], typer.Option(
 def protocols_show(name: Annotated[str, typer.Argument(help="A library protocol name, or a path to a .toml file.")],
                    settings: SetOpt = None):
     """Print a protocol's steps, its true duration, frame count and disk estimate."""
-    from rig.cli.protocol_cmds import show_protocol
+    from cli.protocol_cmds import show_protocol
 
     show_protocol(name, settings=settings or [])
 
@@ -286,7 +286,7 @@ def run_protocol_cmd(
 
     With --sim the simulated rig runs on simulated time, as fast as the frames can be made.
     """
-    from rig.cli.protocol_cmds import run_protocol
+    from cli.protocol_cmds import run_protocol
 
     run_protocol(name, out=out, resume=resume, dry_run=dry_run, config=config, sim=sim, origin=_origin(origin),
                  settings=settings or [])

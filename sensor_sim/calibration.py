@@ -23,7 +23,7 @@ import scipy.sparse as sp
 from scipy.optimize import minimize
 from scipy.sparse.linalg import spsolve
 
-from rig.sim.tactile.light import LightModel, normal_lookup
+from sensor_sim.light import LightModel, normal_lookup
 
 BLURS_MM = (0.1, 0.2, 0.3)  # optical blur candidates (leave-one-out on the GelSight Mini: 0.2 best)
 TABLE_BINS = 21  # normal grid: 0.1 steps in nx, ny (17 and 25 fit the same, bench/optics_bench.py)

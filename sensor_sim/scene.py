@@ -11,11 +11,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from rig.sim.contact import Pose
-from rig.sim.tactile.contact import ContactResult, SensorGeometry
-from rig.sim.tactile.elastomer import Elastomer
-from rig.sim.tactile.optics import OpticsSpec, Renderer
-from rig.sim.tactile.world_contact import ElastomerContact
+from objects.pose import Pose
+from sensor_sim.contact import ContactResult, SensorGeometry
+from sensor_sim.elastomer import Elastomer
+from sensor_sim.light import OpticsSpec
+from sensor_sim.optics import Renderer
+from sensor_sim.world_contact import ElastomerContact
 
 
 @dataclass

@@ -10,7 +10,7 @@ from typing import Any
 
 import typer
 
-from rig.config import number_problem
+from common.table import number_problem
 
 
 def number(*, low: float | None = None, high: float | None = None, positive: bool = False):

@@ -21,8 +21,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from rig.sim.tactile.contact import SensorGeometry
-from rig.sim.tactile.light import SHADINGS, LightModel, OpticsSpec
+from sensor_sim.contact import SensorGeometry
+from sensor_sim.light import SHADINGS, LightModel, OpticsSpec
 
 DEFAULT_PROFILE = Path(__file__).parent / "data" / "gelsight_mini.toml"
 
@@ -149,7 +149,7 @@ def save_profile(profile: SensorProfile, path: str | Path) -> Path:
         raise ProfileError(f"{bg_path}: cannot write the background image")
     light = profile.light
     tables = "\n".join(f"table_{c} = {_toml_rows(light.table_bgr[i])}" for i, c in enumerate("bgr"))
-    text = f'''# Sensor profile (rig.sim.tactile.profile): one tactile sensor's frame, gel, optics and markers.
+    text = f'''# Sensor profile (sensor_sim.profile): one tactile sensor's frame, gel, optics and markers.
 [sensor]
 name = "{profile.name}"
 source = "{profile.source}"

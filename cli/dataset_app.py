@@ -11,7 +11,7 @@ from typing import Annotated, Optional
 
 import typer
 
-from rig.cli.options import number
+from cli.options import number
 
 app = typer.Typer(help="Run files (HDF5) → validated, split training data with contact conditions.",
                   no_args_is_help=True, add_completion=False)
@@ -22,11 +22,11 @@ Paths = Annotated[list[Path], typer.Argument(help="Run files (HDF5) written by `
 def friendly(fn):
     @functools.wraps(fn)
     def wrapper(*args, **kwargs):
-        from rig.errors import RigError
+        from common.errors import ToolError
 
         try:
             return fn(*args, **kwargs)
-        except (RigError, FileNotFoundError, ValueError, KeyError) as exc:
+        except (ToolError, FileNotFoundError, ValueError, KeyError) as exc:
             typer.secho(f"error: {exc}", fg=typer.colors.RED, err=True)
             raise typer.Exit(1)
 
@@ -115,7 +115,7 @@ def export(path: Annotated[Path, typer.Argument(help="A run file.")],
 
 
 def _mm_per_px(ctx: typer.Context, param: typer.CallbackParam, value: Optional[float]):
-    """--mm-per-px: finite and in the import's calibration range, the option named (rig/cli/options.py)."""
+    """--mm-per-px: finite and in the import's calibration range, the option named (cli/options.py)."""
     from dataset.interchange import MM_PER_PX
 
     return number(low=MM_PER_PX[0], high=MM_PER_PX[1])(ctx, param, value)

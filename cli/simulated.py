@@ -10,13 +10,13 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 
+from acquisition.schema import RIG_CONFIG_MARK
 from rig.clock import ManualClock
 from rig.config import SafetyConfig
 from rig.rig import Rig
 from rig.sim.rig_sim import SimulatedRig
 
 GAUGE_RATE_HZ = 10.0  # simulated time; the run samples the wrench at the capture rate
-RIG_CONFIG_MARK = "# built-in simulated rig (rig run-protocol --sim)"  # first line of a simulated run's rig_config
 
 
 @contextlib.contextmanager

@@ -1,0 +1,1 @@
+"""The objects pressed on the sensor: indenter geometry (height maps), object images, the pose."""

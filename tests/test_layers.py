@@ -1,0 +1,166 @@
+"""The import contract: every import of the package (those inside functions included) runs
+down the layers of docs/architecture.md, torch stays off the light paths, and no module
+imports itself through others.
+
+    common → objects → sensor_sim → rig (transport → drivers → sim; core) → protocols
+    → acquisition → dataset → model → cli
+
+(protocols sit beside the rig: they import neither it nor anything above.)
+"""
+
+from __future__ import annotations
+
+import ast
+from functools import cache
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+PACKAGES = ("common", "objects", "sensor_sim", "rig", "protocols", "acquisition", "dataset", "model", "cli")
+
+# What each layer may import from the project (besides itself). Rig's inner layers are
+# listed by module prefix; the longest matching prefix decides.
+RIG_BASE = ("rig", "rig.errors", "rig.clock", "rig.types", "rig.config")
+ALLOWED: dict[str, tuple[str, ...]] = {
+    "common": (),
+    "objects": ("common",),
+    "sensor_sim": ("common", "objects"),
+    "rig.errors": ("common",),
+    "rig.clock": (),
+    "rig.types": ("common", "rig.errors"),
+    "rig.config": ("common", "rig.errors"),
+    "rig.transport": ("common", *RIG_BASE),
+    "rig.drivers": ("common", *RIG_BASE, "rig.transport"),
+    # device simulators speak the drivers' bytes: they may share framing helpers and
+    # register tables with them, and compute with the physics library
+    "rig.sim": ("common", "objects", "sensor_sim", *RIG_BASE, "rig.transport", "rig.drivers"),
+    "rig": ("common", "objects", *RIG_BASE, "rig.transport", "rig.drivers"),  # rig.py, motion, factory, safety
+    "protocols": ("common", "objects"),
+    "acquisition": ("common", "objects", "protocols", "rig"),
+    "dataset": ("common", "objects", "protocols", "acquisition"),
+    "model": ("common", "objects", "sensor_sim", "protocols", "acquisition", "dataset"),
+    "cli": PACKAGES,
+}
+FORBIDDEN_BELOW = {  # finer rules inside an allowed package
+    "acquisition": ("rig.sim",),  # a hardware run never needs the simulator
+    "rig": ("rig.sim",),  # the rig opens what the config names; the simulated rig is handed in
+}
+NO_TORCH = ("common", "objects", "sensor_sim", "rig", "protocols", "acquisition", "dataset")
+TORCH_ALLOWED = ("dataset.torch_dataset",)  # the PyTorch Dataset: imported by training only
+HEAVY = ("torch", "diffusers", "accelerate", "safetensors")
+
+
+def module_name(path: Path) -> str:
+    parts = path.relative_to(ROOT).with_suffix("").parts
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+@cache
+def modules() -> dict[str, Path]:
+    return {module_name(p): p for pkg in PACKAGES for p in (ROOT / pkg).rglob("*.py")}
+
+
+@cache
+def imports(name: str) -> tuple[tuple[str, int], ...]:
+    """(imported module, line) for every import in the module, at any depth."""
+    path = modules()[name]
+    found = []
+    for node in ast.walk(ast.parse(path.read_text(), str(path))):
+        if isinstance(node, ast.Import):
+            found += [(alias.name, node.lineno) for alias in node.names]
+        elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+            found.append((node.module, node.lineno))
+            # `from pkg import module` imports a module too
+            found += [(f"{node.module}.{a.name}", node.lineno) for a in node.names
+                      if f"{node.module}.{a.name}" in modules()]
+    return tuple(found)
+
+
+def layer_of(name: str, table) -> str:
+    best = ""
+    for key in table:
+        if (name == key or name.startswith(key + ".")) and len(key) > len(best):
+            best = key
+    return best
+
+
+def project(name: str) -> bool:
+    return name.split(".")[0] in PACKAGES
+
+
+def within(name: str, prefixes) -> bool:
+    return any(name == p or name.startswith(p + ".") for p in prefixes)
+
+
+def test_every_package_module_is_known():
+    assert len(modules()) > 50
+    for name in modules():
+        assert layer_of(name, ALLOWED), f"{name} belongs to no layer"
+
+
+@pytest.mark.parametrize("name", sorted(m for m in modules()))
+def test_imports_run_down_the_layers(name):
+    layer = layer_of(name, ALLOWED)
+    allowed = (layer, *ALLOWED[layer])
+    bad = []
+    for target, line in imports(name):
+        if not project(target):
+            continue
+        if within(target, FORBIDDEN_BELOW.get(layer, ())) and not within(name, FORBIDDEN_BELOW.get(layer, ())):
+            bad.append(f"line {line}: {target}")
+        elif not within(target, allowed) and layer_of(target, ALLOWED) not in allowed:
+            bad.append(f"line {line}: {target} (layer {layer_of(target, ALLOWED)})")
+    assert not bad, f"{name} (layer {layer}) imports against the layers: {bad}"
+
+
+@pytest.mark.parametrize("name", sorted(m for m in modules() if within(m, NO_TORCH) and m not in TORCH_ALLOWED))
+def test_no_torch_on_the_light_paths(name):
+    heavy = [f"line {line}: {t}" for t, line in imports(name) if t.split(".")[0] in HEAVY]
+    assert not heavy, f"{name} imports {heavy}"
+
+
+def test_no_import_cycle():
+    graph = {name: {t for t, _ in imports(name) if t in modules() and t != name} for name in modules()}
+    # a package's __init__ importing its own submodules is not a cycle of layers
+    for name in graph:
+        graph[name] = {t for t in graph[name] if not t.startswith(name + ".")}
+    index, low, stack, on_stack, cycles = {}, {}, [], set(), []
+
+    def visit(v):  # Tarjan's strongly connected components
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on_stack.add(v)
+        for w in graph[v]:
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on_stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            component = []
+            while True:
+                w = stack.pop()
+                on_stack.discard(w)
+                component.append(w)
+                if w == v:
+                    break
+            if len(component) > 1:
+                cycles.append(sorted(component))
+
+    for v in graph:
+        if v not in index:
+            visit(v)
+    assert not cycles, f"import cycles: {cycles}"
+
+
+def test_the_contract_catches_a_wrong_arrow(tmp_path, monkeypatch):
+    """The checker itself: a protocol module importing the rig is reported."""
+    fake = tmp_path / "protocols" / "bad.py"
+    fake.parent.mkdir()
+    fake.write_text("def f():\n    from rig.rig import Rig\n")
+    monkeypatch.setitem(modules(), "protocols.bad", fake)
+    imports.cache_clear()
+    with pytest.raises(AssertionError, match="protocols.bad .* rig.rig"):
+        test_imports_run_down_the_layers("protocols.bad")
+    imports.cache_clear()
