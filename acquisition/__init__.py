@@ -1,1 +1,1 @@
-"""Synchronised capture of tactile frame + wrench + pose into HDF5 (issue 4: not yet built)."""
+"""Synchronised capture of tactile frame + wrench + pose into HDF5 run files (docs/run-file.md)."""

@@ -27,6 +27,7 @@ from protocols.plan import AXES, PHASES, Plan
 from rig.errors import DeviceError, ForceLimitExceeded, RigError, SafetyError
 from rig.motion import describe
 from rig.safety import check_speed, check_target
+from rig.types import MotionSession
 
 log = logging.getLogger("acquisition")
 
@@ -68,13 +69,17 @@ def preflight(config, plan: Plan, origin: dict[str, float]) -> None:
             for axis, value in zip(AXES, pose):
                 if axis not in config.axes:
                     if value != 0:
-                        raise ProtocolRefused(f"protocol step {step.index} ({step.phase}) moves axis {axis}, "
-                                              f"which {config.path} does not configure")
+                        raise ProtocolRefused(
+                            f"protocol step {step.index} ({step.phase}) moves axis {axis}, "
+                            f"which {config.path} does not configure"
+                        )
                     continue
                 try:
                     check_target(config.axes[axis], origin[axis] + value)
                 except SafetyError as exc:
-                    raise ProtocolRefused(f"protocol step {step.index} ({step.phase}, level {step.level}): {exc}") from None
+                    raise ProtocolRefused(
+                        f"protocol step {step.index} ({step.phase}, level {step.level}): {exc}"
+                    ) from None
         for axis, speed in step.speeds.items():
             if axis in config.axes:
                 try:
@@ -89,9 +94,16 @@ def disk_bytes(plan: Plan, frame_shape: tuple[int, int, int]) -> int:
 
 
 class Acquisition:
-    def __init__(self, rig, plan: Plan, *, origin: dict[str, float] | None = None,
-                 monitor_interval_s: float | None = None, progress: Callable[[Progress], None] | None = None,
-                 solver_warnings: Callable[[], int] | None = None):
+    def __init__(
+        self,
+        rig,
+        plan: Plan,
+        *,
+        origin: dict[str, float] | None = None,
+        monitor_interval_s: float | None = None,
+        progress: Callable[[Progress], None] | None = None,
+        solver_warnings: Callable[[], int] | None = None,
+    ):
         if rig.camera is None or rig.gauge is None:
             raise RigError("acquisition needs the camera and the force gauge open")
         self.rig = rig
@@ -102,9 +114,16 @@ class Acquisition:
         self.progress = progress
         self.protocol = plan.protocol
         self._measured: dict[str, float] = {}
-        self.m = None  # the motion session while a run is under way
+        self._session: MotionSession | None = None  # the motion session while a run is under way
         # simulated rig: the count of contact solves short of tolerance, recorded in the file
         self.solver_warnings = solver_warnings
+
+    @property
+    def m(self) -> MotionSession:
+        """The open motion session: every move of a run goes through it."""
+        if self._session is None:
+            raise RigError("no motion session is open: moves happen only inside Acquisition.run")
+        return self._session
 
     # -- helpers ------------------------------------------------------------------
     def _abs(self, rel: tuple[float, ...]) -> dict[str, float]:
@@ -133,6 +152,34 @@ class Acquisition:
             if frame.t_s >= trigger_t - 1e-9:
                 return frame
 
+    # -- the gauge's full-rate stream (docs/run-file.md, wrench_stream) ----------------
+    def _stream_start(self, writer: RunWriter | None) -> None:
+        """Record the gauge's samples from the tare on; after a resume, only later than the file's last."""
+        self._stream_t, self._stream_same_t = self.clock.now(), 0  # newest sample taken, and how many at that time
+        self._stream_floor = writer.last_stream_t_s if writer is not None else None
+        self._stream_rows: list[list[float]] = []
+
+    def _collect_stream(self) -> None:
+        """Move the samples that arrived since the last call into ``_stream_rows``, tared,
+        stamped on the rig clock plus the resume offset (as t_frame_s)."""
+        buffer = getattr(self.rig.gauge, "buffer", None)  # a gauge without a stream buffer records none
+        if buffer is None:
+            return
+        # Samples of one read share its arrival stamp, and another read may arrive at the
+        # same instant: take those at the last stamp that were not taken yet, then later ones.
+        samples = buffer.since(math.nextafter(self._stream_t, -math.inf))[self._stream_same_t :]
+        if not samples:
+            return
+        last = samples[-1].t_s
+        same = sum(1 for s in samples if s.t_s == last)
+        self._stream_same_t = same + (self._stream_same_t if last == self._stream_t else 0)
+        self._stream_t = last
+        bias = self.rig.gauge.bias
+        for s in samples:
+            t = s.t_s + self._t_offset_s
+            if self._stream_floor is None or t > self._stream_floor:
+                self._stream_rows.append([t, *(s.as_array() - bias)])
+
     def _measured_pose(self, moving: set[str]) -> list[float]:
         now = self.clock.now()
         for axis in self.rig.axes:
@@ -154,11 +201,16 @@ class Acquisition:
         self._t_offset_s = 0.0
         if resume:
             writer = RunWriter.reopen(path)
-            if writer.header_attr(S.ATTR_PROTOCOL) != proto.text:
+            recorded = str(writer.header_attr(S.ATTR_PROTOCOL))
+            if recorded != proto.text and not _same_protocol(recorded, proto, path):
                 writer.close()
-                raise RunFileError(f"{path}: was recorded with a different protocol file; resume needs the same one")
-            if writer.n:  # this process's clock starts anew: keep t_frame_s increasing (docs/run-file.md)
-                self._t_offset_s = writer.last_t_frame_s + 1.0 / proto.capture_hz - self.clock.now()
+                raise RunFileError(
+                    f"{path}: was recorded with a different protocol (another setting than now); "
+                    "resume needs the same settings"
+                )
+            last_t = writer.last_t_frame_s
+            if last_t is not None:  # this process's clock starts anew: keep t_frame_s increasing (docs/run-file.md)
+                self._t_offset_s = last_t + 1.0 / proto.capture_hz - self.clock.now()
             done = writer.capture_indices
             k0 = int(done[-1]) + 1 if len(done) else 0
             if k0 >= plan.frame_count:
@@ -169,13 +221,15 @@ class Acquisition:
         warnings_before = self.solver_warnings() if self.solver_warnings is not None else 0
         # One motion session for the whole run: any error, Ctrl-C, SIGTERM or SIGHUP stops
         # every axis and lifts z to the approach height; _record_stop puts why into `result`.
-        motion = self.rig.motion("protocol", retract_to_z=self._safe_z(),
-                                 on_stop=lambda report: self._record_stop(result, report))
+        motion = self.rig.motion(
+            "protocol", retract_to_z=self._safe_z(), on_stop=lambda report: self._record_stop(result, report)
+        )
         try:
-            with motion as self.m:
+            with motion as self._session:
                 start_pose = plan.pose_at(plan.capture_time(k0)) if k0 else plan.steps[0].start
                 self._go_to_start((start_pose[0], start_pose[1], proto.approach_mm, start_pose[3]))
                 self.rig.tare(50)
+                self._stream_start(writer)
                 reference = self._capture_frame(self.clock.now()).image
                 if writer is None:
                     from objects.indenters import get_indenter
@@ -183,14 +237,29 @@ class Acquisition:
                     info = dict(header or {})
                     mm_per_px = float(info.get("mm_per_px", float("nan")))
                     obj = get_indenter(proto.object)
-                    object_image = obj.object_image(reference.shape[1], mm_per_px if math.isfinite(mm_per_px) else 14.0 / reference.shape[1])
-                    writer = RunWriter.create(path, RunHeader(
-                        protocol_name=proto.name, protocol_toml=proto.text,
-                        rig_config=info.get("rig_config", ""), object_name=proto.object,
-                        object_geometry=obj.description, sensor_kind=proto.sensor, mm_per_px=mm_per_px,
-                        capture_hz=proto.capture_hz, frames_planned=plan.frame_count,
-                        contact_origin=tuple(self.origin[a] for a in AXES), phases=PHASES,
-                    ), reference.shape, object_image, reference, lock=lock)
+                    object_image = obj.object_image(
+                        reference.shape[1], mm_per_px if math.isfinite(mm_per_px) else 14.0 / reference.shape[1]
+                    )
+                    writer = RunWriter.create(
+                        path,
+                        RunHeader(
+                            protocol_name=proto.name,
+                            protocol_toml=proto.text,
+                            rig_config=info.get("rig_config", ""),
+                            object_name=proto.object,
+                            object_geometry=obj.description,
+                            sensor_kind=proto.sensor,
+                            mm_per_px=mm_per_px,
+                            capture_hz=proto.capture_hz,
+                            frames_planned=plan.frame_count,
+                            contact_origin=(self.origin["x"], self.origin["y"], self.origin["z"], self.origin["theta"]),
+                            phases=PHASES,
+                        ),
+                        reference.shape,
+                        object_image,
+                        reference,
+                        lock=lock,
+                    )
                 self._main(writer, k0, result)
                 self.m.move({"z": self._safe_z()}, proto.approach_speed_mm_s)  # retract, not captured
         except RunFileError:
@@ -209,8 +278,10 @@ class Acquisition:
                     if self.solver_warnings is not None:
                         result.solver_warnings = self.solver_warnings() - warnings_before
                         writer.set_sim_solver_warnings(result.solver_warnings)
-                    writer.set_status(result.status if result.status != "running" else "aborted",
-                                      result.reason or ("" if result.status == "complete" else "stopped by an error"))
+                    writer.set_status(
+                        result.status if result.status != "running" else "aborted",
+                        result.reason or ("" if result.status == "complete" else "stopped by an error"),
+                    )
                 finally:
                     writer.close()
         return result
@@ -251,8 +322,10 @@ class Acquisition:
         else:  # back to where the interrupted run was, at protocol speed for the last part
             here = current.pose_at(into)
             m.move({"z": self.origin["z"]}, proto.approach_speed_mm_s)
-            m.move(self._abs(here), {a: max(proto.speed_mm_s, 1e-3) if a != "theta" else proto.twist_speed_deg_s
-                                        for a in self._abs(here)})
+            m.move(
+                self._abs(here),
+                {a: max(proto.speed_mm_s, 1e-3) if a != "theta" else proto.twist_speed_deg_s for a in self._abs(here)},
+            )
         t0 = clock.now() - t_k0  # rig-clock time of protocol time 0
         guard = rig.guard
         moving: set[str] = set()
@@ -283,6 +356,7 @@ class Acquisition:
             if now >= next_monitor - 1e-9:
                 # With nothing moving this is the plain force check under the rig's own limits.
                 moving = m.monitor(moving, guard if moving else rig.guard, "protocol")
+                self._collect_stream()  # the gauge buffer holds seconds: empty it between captures
                 next_monitor = now + self.monitor_interval_s
             if now >= t_capture - 1e-9:
                 self._capture(writer, k, t_capture, moving, result)
@@ -295,20 +369,47 @@ class Acquisition:
         frame = self._capture_frame(t_trigger)
         wrench, skew = self.rig.gauge.sample_at(frame.t_s)
         step, _ = self.plan.locate(t_prot)
-        writer.append(frame.image, **{
-            S.WRENCH: wrench,
-            S.POSE_COMMANDED: np.asarray(self.plan.pose_at(t_prot)),
-            S.POSE_MEASURED: np.asarray(self._measured_pose(moving)),
-            S.T_FRAME: frame.t_s + self._t_offset_s,
-            S.T_CAPTURE: t_prot,
-            S.WRENCH_SKEW: skew,
-            S.CAPTURE_INDEX: k,
-            S.STEP_INDEX: step.index,
-            S.PHASE_INDEX: PHASES.index(step.phase),
-            S.LEVEL: step.level,
-        })
+        self._collect_stream()
+        stream, self._stream_rows = self._stream_rows, []
+        writer.append(
+            frame.image,
+            stream=np.array(stream).reshape(-1, 7) if writer.records_stream else None,
+            **{
+                S.WRENCH: wrench,
+                S.POSE_COMMANDED: np.asarray(self.plan.pose_at(t_prot)),
+                S.POSE_MEASURED: np.asarray(self._measured_pose(moving)),
+                S.T_FRAME: frame.t_s + self._t_offset_s,
+                S.T_CAPTURE: t_prot,
+                S.WRENCH_SKEW: skew,
+                S.CAPTURE_INDEX: k,
+                S.STEP_INDEX: step.index,
+                S.PHASE_INDEX: writer.phase_index(step.phase),  # the file's own list: a resumed file keeps its order
+                S.LEVEL: step.level,
+            },
+        )
         result.skews_s.append(skew)
         result.trigger_lag_s.append(frame.t_s - t_trigger)
         if self.progress is not None:
-            self.progress(Progress(k + 1, self.plan.frame_count, step.phase, step.level, t_prot,
-                                   self.plan.captured_duration_s, wrench, skew))
+            self.progress(
+                Progress(
+                    k + 1,
+                    self.plan.frame_count,
+                    step.phase,
+                    step.level,
+                    t_prot,
+                    self.plan.captured_duration_s,
+                    wrench,
+                    skew,
+                )
+            )
+
+
+def _same_protocol(recorded_text: str, proto, path) -> bool:
+    """The run's own protocol text and ``proto`` set the same motion (comments and file aside)."""
+    from common.errors import ConfigError
+    from protocols.spec import parse_protocol
+
+    try:
+        return parse_protocol(recorded_text, f"{path} (its protocol_toml)").same_motion(proto)
+    except ConfigError:
+        return False

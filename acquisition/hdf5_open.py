@@ -37,8 +37,8 @@ def _set_read_attempts():
         with open("/proc/self/maps") as maps:
             libs = {line.split()[-1] for line in maps if "/libhdf5" in line and "_hl" not in line.rsplit("/", 1)[-1]}
         for lib in sorted(libs):
-            fn = ctypes.CDLL(lib, mode=os.RTLD_NOLOAD)  # the already-loaded copy
-            fn = fn.H5Pset_metadata_read_attempts
+            library = ctypes.CDLL(lib, mode=os.RTLD_NOLOAD)  # the already-loaded copy
+            fn = library.H5Pset_metadata_read_attempts
             fn.argtypes, fn.restype = [ctypes.c_int64, ctypes.c_uint], ctypes.c_int
             return fn
     except (OSError, AttributeError):

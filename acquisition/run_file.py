@@ -6,23 +6,24 @@
   (disk full) is rolled back to the last counted frame, recorded as the reason, and
   raised as RunFileError, so no partial or all-zero frame is ever committed.
 * Frames and rows carry Fletcher-32 checksums per chunk: corruption fails on read.
+  Frames are losslessly compressed (``schema.FRAME_CODEC``), one frame per chunk.
+* Every dataset comes from the schema's field table: a field added there is written.
 * Created under a temporary name and renamed into place once the header, reference
   frame and object image are on disk: a crash leaves nothing at ``--out``.
 * One writer at a time: ``writer_lock.WriterLock`` (a second run, ``--resume``).
 
 After a crash the file keeps HDF5's "open for writing" flag: readers open it with
 ``swmr=True`` (``open_for_reading`` does), and ``recover`` copies it into a clean
-file so that ``--resume`` can append again. docs/run-file.md has the details.
+file so that ``--resume`` can append again (acquisition/run_storage.py; ``dataset compact``: run_compact.py).
+docs/run-file.md has the details.
 """
 
 from __future__ import annotations
 
 import datetime as dt
-import errno
 import logging
 import os
-import re
-import resource
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -31,11 +32,36 @@ import numpy as np
 
 from acquisition import schema as S
 from acquisition.hdf5_open import check_complete, open_swmr_read
-from acquisition.run_layout import layout_problems
+from acquisition.run_layout import decode_phases, layout_problems
+from acquisition.run_storage import (
+    ROW_BLOCK,
+    STREAM_BLOCK,
+    TEMP_MARKS,
+    chunked,
+    fsync_path,
+    recover,
+    remove_stale_temps,
+    temp_path,
+)
+from acquisition.write_failure import SPACE_MARGIN_BYTES, describe_failure, space_shortfall
 from acquisition.writer_lock import RunFileError, RunLocked, WriterLock, live_writer
 from rig import __version__
 
-__all__ = ["RunFileError", "RunHeader", "RunLocked", "RunWriter", "open_for_reading", "recover", "PER_FRAME"]
+__all__ = [
+    "RunFileError",
+    "RunHeader",
+    "RunLocked",
+    "RunWriter",
+    "open_for_reading",
+    "recover",
+    "PER_FRAME",
+    "ROW_BLOCK",
+    "STREAM_BLOCK",
+    "TEMP_MARKS",
+    "chunked",
+    "remove_stale_temps",
+    "temp_path",
+]
 
 log = logging.getLogger("acquisition")
 
@@ -58,58 +84,12 @@ class RunHeader:
 # (name, shape per frame, dtype, units), from the schema's field table
 PER_FRAME = tuple((f.path, f.shape, f.dtype, f.units) for f in S.PER_FRAME_FIELDS)
 
-ROW_BLOCK = 256  # per-row datasets grow in blocks; the frame count says how many rows are valid
-TEMP_MARKS = (".creating-", ".recovering-")  # RUN.h5.creating-PID, RUN.h5.recovering-PID
-SPACE_MARGIN_BYTES = 1 << 20  # metadata a flush may add beside the frame itself
-
-
-def chunked(chunks: tuple[int, ...]) -> dict:
-    """Creation keywords of every growing dataset: the one place for its filters.
-
-    Fletcher-32 stores a checksum per chunk, checked on every read. One frame per
-    chunk keeps a damaged chunk to one frame (and a later compression filter goes here).
-    """
-    return {"chunks": chunks, "fletcher32": True}
-
-
-def temp_path(path: Path, mark: str) -> Path:
-    return path.with_name(f"{path.name}{mark}{os.getpid()}")
-
-
-def remove_stale_temps(path: Path) -> list[Path]:
-    """Temp files a crashed writer of ``path`` left; call only while holding its lock."""
-    stale = [p for p in path.parent.glob(f"{glob_escape(path.name)}.*-*")
-             if any(p.name.startswith(path.name + mark) for mark in TEMP_MARKS)]
-    for p in stale:
-        p.unlink(missing_ok=True)
-    return stale
-
-
-def glob_escape(name: str) -> str:
-    return re.sub(r"([*?\[])", r"[\1]", name)
-
-
-def _fsync(path: Path) -> None:
-    fd = os.open(path, os.O_RDONLY)
-    try:
-        os.fsync(fd)
-    finally:
-        os.close(fd)
-
 
 def _first_line(exc: BaseException) -> str:
     return str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
 
 
-def _errno_of(exc: BaseException) -> int | None:
-    """OSError's errno, or the one h5py's RuntimeError quotes ("errno = 28, ...")."""
-    if isinstance(exc, OSError) and exc.errno:
-        return exc.errno
-    found = re.search(r"errno = (\d+)", str(exc))
-    return int(found.group(1)) if found else None
-
-
-def _write_header(f: h5py.File, header: RunHeader, frame_shape, object_image, reference_frame) -> None:
+def _write_header(f: h5py.File, header: RunHeader, frame_shape, object_image, reference_frame, compress: bool) -> None:
     a = f.attrs
     a[S.ATTR_SCHEMA] = S.SCHEMA_VERSION
     a[S.ATTR_SOFTWARE] = __version__
@@ -126,11 +106,29 @@ def _write_header(f: h5py.File, header: RunHeader, frame_shape, object_image, re
     a[S.ATTR_CONTACT_ORIGIN] = np.asarray(header.contact_origin, dtype=float)
     a[S.ATTR_PHASES] = list(header.phases)
     h, w, c = frame_shape
-    frames = f.create_dataset(S.FRAMES, (0, h, w, c), maxshape=(None, h, w, c), dtype="u1", **chunked((1, h, w, c)))
+    frames = f.create_dataset(
+        S.FRAMES,
+        (0, h, w, c),
+        maxshape=(None, h, w, c),
+        dtype=S.FRAMES_FIELD.dtype,
+        **chunked((1, h, w, c), compress=compress),
+    )
     frames.attrs["units"] = S.FRAMES_FIELD.units
-    for name, shape, dtype, units in PER_FRAME:
-        d = f.create_dataset(name, (0, *shape), maxshape=(None, *shape), dtype=dtype, **chunked((ROW_BLOCK, *shape)))
-        d.attrs["units"] = units
+    for field in S.PER_FRAME_FIELDS:
+        d = f.create_dataset(
+            field.path,
+            (0, *field.shape),
+            maxshape=(None, *field.shape),
+            dtype=field.dtype,
+            **chunked((ROW_BLOCK, *field.shape)),
+        )
+        d.attrs["units"] = field.units
+    for field in S.STREAM_FIELDS:
+        width = field.shape[1:]
+        d = f.create_dataset(
+            field.path, (0, *width), maxshape=(None, *width), dtype=field.dtype, **chunked((STREAM_BLOCK, *width))
+        )
+        d.attrs["units"] = field.units
     f.create_dataset(S.OBJECT_IMAGE, data=object_image.astype(np.uint8))
     f.create_dataset(S.REFERENCE_FRAME, data=reference_frame.astype(np.uint8))
     f.create_dataset(S.STATUS, data=np.bytes_("running"), dtype=f"S{S.STATUS_LEN}")
@@ -145,8 +143,12 @@ class RunWriter:
         self.lock = lock
         self.n = f[S.FRAMES].shape[0]
         self._frames = f[S.FRAMES]
-        self._rows = {name: f[name] for name, *_ in PER_FRAME}
+        # the fields this file has: an older file lacks the optional ones added since
+        self._rows = {fl.path: f[fl.path] for fl in S.PER_FRAME_FIELDS if fl.path in f}
         self._rows_len = min(d.shape[0] for d in self._rows.values())
+        self._stream = f.get(S.WRENCH_STREAM)
+        self._stream_n = self._stream.shape[0] if self._stream is not None else 0  # rows counted
+        self.phases = decode_phases(f)
         self._failure = ""  # set when a write failed: the file is closed with it as its reason
 
     @classmethod
@@ -161,10 +163,20 @@ class RunWriter:
         return lock
 
     @classmethod
-    def create(cls, path: str | Path, header: RunHeader, frame_shape: tuple[int, int, int],
-               object_image: np.ndarray, reference_frame: np.ndarray, *, lock: WriterLock | None = None) -> "RunWriter":
+    def create(
+        cls,
+        path: str | Path,
+        header: RunHeader,
+        frame_shape: tuple[int, int, int],
+        object_image: np.ndarray,
+        reference_frame: np.ndarray,
+        *,
+        lock: WriterLock | None = None,
+        compress: bool = True,
+    ) -> "RunWriter":
         """A new run file at ``path``, which must not exist. Takes the writer lock (or uses
-        ``lock``, already taken); RunLocked names another live writer, RunFileError the rest."""
+        ``lock``, already taken); RunLocked names another live writer, RunFileError the rest.
+        ``compress=False`` writes frames uncompressed, as files before compression were."""
         path = Path(path)
         lock = lock or WriterLock.acquire(path)
         try:
@@ -174,8 +186,8 @@ class RunWriter:
             tmp = temp_path(path, ".creating-")
             try:
                 with h5py.File(tmp, "w", libver="latest") as f:
-                    _write_header(f, header, frame_shape, object_image, reference_frame)
-                _fsync(tmp)
+                    _write_header(f, header, frame_shape, object_image, reference_frame, compress)
+                fsync_path(tmp)
                 os.replace(tmp, path)  # only a complete header ever appears at the run's name
             except (OSError, RuntimeError) as exc:
                 raise RunFileError(f"{path}: cannot create the run file ({_first_line(exc)})") from None
@@ -200,7 +212,9 @@ class RunWriter:
         try:
             stale = remove_stale_temps(path)
             if not path.exists():
-                detail = f" (a crash interrupted its creation; removed {', '.join(p.name for p in stale)})" if stale else ""
+                detail = (
+                    f" (a crash interrupted its creation; removed {', '.join(p.name for p in stale)})" if stale else ""
+                )
                 raise RunFileError(f"{path}: no such run file to resume{detail}; start a new run")
             problem = check_complete(path)
             if problem:
@@ -250,13 +264,37 @@ class RunWriter:
             try:
                 d[:n]
             except (OSError, RuntimeError) as exc:
-                raise RunFileError(f"{self.path}: {name}: unreadable ({_first_line(exc)}); the file is damaged, "
-                                   "cannot resume it") from None
+                raise RunFileError(
+                    f"{self.path}: {name}: unreadable ({_first_line(exc)}); the file is damaged, cannot resume it"
+                ) from None
         while n > 0 and not self._frame_on_disk(n - 1):
             log.warning("%s: frame %d never reached the disk; dropped", self.path, n - 1)
             n -= 1
         self.n = n
+        self._stream_n = self._stream_on_disk()
         self._truncate_to(n)
+
+    def _stream_on_disk(self) -> int:
+        """Rows of the stream up to the first that never reached the disk: a chunk never
+        written reads as zeros (time going back) and a cut one fails its checksum."""
+        if self._stream is None or self._stream.shape[0] == 0:
+            return 0
+        try:
+            t = self._stream[:, 0]
+        except (OSError, RuntimeError):  # locate the damaged chunk: keep the rows before it
+            t = np.concatenate([self._read_or_nan(i) for i in range(0, self._stream.shape[0], STREAM_BLOCK)])
+        ok = np.isfinite(t) & np.concatenate([[True], np.diff(t) >= 0])
+        kept = int(np.argmin(ok)) if not ok.all() else len(t)
+        if kept < len(t):
+            log.warning("%s: %s rows %d.. never reached the disk; dropped", self.path, S.WRENCH_STREAM, kept)
+        return kept
+
+    def _read_or_nan(self, start: int) -> np.ndarray:
+        stop = min(start + STREAM_BLOCK, self._stream.shape[0])
+        try:
+            return self._stream[start:stop, 0]
+        except (OSError, RuntimeError):
+            return np.full(stop - start, np.nan)
 
     def _frame_on_disk(self, i: int) -> bool:
         if self._frames.id.get_chunk_info_by_coord((i, 0, 0, 0)).byte_offset is None:
@@ -271,6 +309,8 @@ class RunWriter:
         for d in [self._frames, *self._rows.values()]:
             if d.shape[0] != n:
                 d.resize(n, axis=0)
+        if self._stream is not None and self._stream.shape[0] != self._stream_n:
+            self._stream.resize(self._stream_n, axis=0)
         self._rows_len = n
         self.f.flush()
 
@@ -283,13 +323,33 @@ class RunWriter:
         """The newest frame's t_frame_s: the next one must be later (see docs/run-file.md)."""
         return float(self._rows[S.T_FRAME][self.n - 1]) if self.n else None
 
+    @property
+    def last_stream_t_s(self) -> float | None:
+        """The newest full-rate wrench sample's time (rig clock, with the resume offset), if any."""
+        return float(self._stream[self._stream_n - 1, 0]) if self._stream is not None and self._stream_n else None
+
+    @property
+    def records_stream(self) -> bool:
+        return self._stream is not None  # files written before the full-rate wrench have no place for it
+
+    def phase_index(self, phase: str) -> int:
+        """``phase``'s index in this file's own ``phases`` attribute (a resumed file keeps its order)."""
+        try:
+            return self.phases.index(phase)
+        except ValueError:
+            raise RunFileError(
+                f"{self.path}: phase {phase!r} is not in the file's phases ({', '.join(self.phases)})"
+            ) from None
+
     def header_attr(self, name: str):
         return self.f.attrs[name]
 
-    def append(self, frame: np.ndarray, **row) -> None:
-        """One capture: the frame and its row (keys: the per-frame dataset names).
+    def append(self, frame: np.ndarray, stream: np.ndarray | None = None, **row) -> None:
+        """One capture: the frame, its row (keys: the per-frame dataset names of the schema's
+        table) and optionally the full-rate wrench samples since the last capture
+        (``stream``: (M, 7) rows of t_s and the wrench, time not going back).
 
-        Counted only after both are flushed. RunFileError when the disk is full or a write
+        Counted only after all are flushed. RunFileError when the disk is full or a write
         fails: nothing of this frame stays in the file, and every earlier frame does.
         """
         if self._failure:
@@ -298,14 +358,16 @@ class RunWriter:
         frames = self._frames
         if frame.shape != frames.shape[1:]:
             raise RunFileError(f"{self.path}: frame shape {frame.shape} differs from the run's {frames.shape[1:]}")
-        missing = [name for name in self._rows if name not in row]
-        if missing:
-            raise RunFileError(f"{self.path}: frame {i} has no {', '.join(missing)}")
+        self._check_row(i, row)
         self._check_space(i, frame.nbytes)
         try:
-            # Rows first (their datasets grow a block at a time), the frame last: the
-            # frame count is the number of valid rows, so a crash in between leaves a
+            # Stream and rows first (row datasets grow a block at a time), the frame last:
+            # the frame count is the number of valid rows, so a crash in between leaves a
             # row without a frame (trimmed on resume), never a frame without its row.
+            if stream is not None and len(stream) and self._stream is not None:
+                m = self._stream_n
+                self._stream.resize(m + len(stream), axis=0)
+                self._stream[m:] = stream
             if self._rows_len <= i:
                 for d in self._rows.values():
                     d.resize(i + ROW_BLOCK, axis=0)
@@ -318,27 +380,27 @@ class RunWriter:
         except (OSError, RuntimeError) as exc:  # h5py reports a failed flush as RuntimeError
             raise self._fail(i, exc) from None
         self.n = i + 1
+        if self._stream is not None:
+            self._stream_n = self._stream.shape[0]
+
+    def _check_row(self, i: int, row: Mapping) -> None:
+        """Every field of this file in ``row``, nothing outside the schema's table (a typo
+        would otherwise be dropped silently)."""
+        table = {f.path for f in S.PER_FRAME_FIELDS}
+        unknown = [name for name in row if name not in table]
+        if unknown:
+            raise RunFileError(
+                f"{self.path}: frame {i}: {', '.join(unknown)} not in the run-file field table (acquisition/schema.py)"
+            )
+        missing = [name for name in self._rows if name not in row]
+        if missing:
+            raise RunFileError(f"{self.path}: frame {i} has no {', '.join(missing)}")
 
     def _check_space(self, i: int, frame_bytes: int) -> None:
-        """Stop before a write that cannot fit, so the common disk-full case never reaches HDF5.
-
-        A write HDF5 starts and the disk refuses is rolled back (``_fail``), except when
-        the file may not grow at all (a file-size limit, EFBIG): HDF5 then cannot extend
-        the file to the space it allocated, no flush succeeds again, and the library
-        crashed at exit (rc 139). Both limits are checked here first.
-        """
-        need = frame_bytes + SPACE_MARGIN_BYTES
-        try:
-            st = os.statvfs(self.path.parent)
-            size = self.path.stat().st_size
-        except OSError:
-            return
-        free = st.f_bavail * st.f_frsize
-        if free < need:
-            raise self._fail(i, OSError(errno.ENOSPC, f"{free:,} bytes free in {self.path.parent}"))
-        limit, _ = resource.getrlimit(resource.RLIMIT_FSIZE)
-        if limit != resource.RLIM_INFINITY and size + need > limit:
-            raise self._fail(i, OSError(errno.EFBIG, f"this process may write files up to {limit:,} bytes (ulimit -f)"))
+        """Stop before a write that cannot fit (acquisition/write_failure.py says why it matters)."""
+        short = space_shortfall(self.path, frame_bytes + SPACE_MARGIN_BYTES)
+        if short is not None:
+            raise self._fail(i, short)
 
     def _fail(self, i: int, exc: BaseException) -> RunFileError:
         """Roll the file back to its ``i`` counted frames and record why; the error to raise.
@@ -347,14 +409,7 @@ class RunWriter:
         at every flush, and at interpreter exit, where the retry crashed the process
         (rc 139): shrinking the datasets to the counted frames discards it.
         """
-        code = _errno_of(exc)
-        what = {errno.ENOSPC: "disk full", errno.EDQUOT: "disk quota exceeded",
-                errno.EFBIG: "file too large (filesystem or process file-size limit)"}.get(code, "write failed")
-        detail = os.strerror(code) if code else _first_line(exc)
-        if isinstance(exc, OSError) and exc.strerror and exc.strerror != detail:
-            detail = f"{detail}: {exc.strerror}"
-        kept = f"frames 0-{i - 1} are kept" if i else "no frame was written"
-        self._failure = f"{what}: frame {i} could not be written ({detail}); {kept}"
+        what, self._failure = describe_failure(exc, i)
         try:
             self._truncate_to(i)
             self.f[S.STATUS][()] = np.bytes_("aborted")
@@ -390,28 +445,11 @@ class RunWriter:
                     self._truncate_to(self.n)
                     self.f.close()
                 except (OSError, RuntimeError) as exc:
-                    raise RunFileError(f"{self.path}: closing failed ({_first_line(exc)}); "
-                                       f"its {self.n} flushed frames are kept") from None
+                    raise RunFileError(
+                        f"{self.path}: closing failed ({_first_line(exc)}); its {self.n} flushed frames are kept"
+                    ) from None
         finally:
             self.lock.release()
-
-
-def recover(path: Path) -> None:
-    """Copy a crashed run (readable in SWMR mode) into a clean file that replaces it.
-
-    Call only while holding the run's writer lock.
-    """
-    tmp = temp_path(path, ".recovering-")
-    try:
-        with open_swmr_read(path) as src, h5py.File(tmp, "w", libver="latest") as dst:
-            for key, value in src.attrs.items():
-                dst.attrs[key] = value
-            for key in src:
-                src.copy(src[key], dst, name=key)
-        _fsync(tmp)
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
 
 
 def open_for_reading(path: str | Path) -> h5py.File:

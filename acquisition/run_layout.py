@@ -89,7 +89,25 @@ def attr_problems(f: h5py.File) -> dict[str, str]:
     return problems
 
 
+def decode_phases(f: h5py.File) -> tuple[str, ...]:
+    """The file's own ``phases`` attribute as text: ``phase_index`` indexes this list, never
+    the code's list of phases (which may be in another order, or longer, than when the file
+    was written). Empty when the attribute is missing (``attr_problems`` says so)."""
+    value = f.attrs.get(S.ATTR_PHASES)
+    if value is None:
+        return ()
+    return tuple(v.decode() if isinstance(v, bytes) else str(v) for v in np.atleast_1d(value))
+
+
+def phase_names(f: h5py.File, indices: np.ndarray) -> list[str]:
+    """``phase_index`` values decoded through the file's ``phases``; an index outside it is
+    "?" (validate reports it)."""
+    phases = decode_phases(f)
+    return [phases[i] if 0 <= i < len(phases) else "?" for i in (int(v) for v in indices)]
+
+
 def layout_problems(f: h5py.File) -> list[str]:
     """Every dataset and attribute problem as 'path: problem' lines (empty when the layout is sound)."""
-    return ([f"{path}: {p}" for path, p in field_problems(f).items()]
-            + [f"attribute {name}: {p}" for name, p in attr_problems(f).items()])
+    return [f"{path}: {p}" for path, p in field_problems(f).items()] + [
+        f"attribute {name}: {p}" for name, p in attr_problems(f).items()
+    ]

@@ -1,9 +1,16 @@
 """The HDF5 run file schema: every path and attribute name, in one place.
 
 Documented in docs/run-file.md. Units are in each dataset's ``units`` attribute.
+
+Importing this module imports hdf5plugin, which registers the frames' compression
+filter (Blosc) with HDF5: every reader and writer of run files names the schema's
+paths, so this is the one place that makes compressed frames readable everywhere.
 """
 
 from dataclasses import dataclass
+
+import hdf5plugin
+import numpy as np
 
 FRAMES = "frames"  # (N, H, W, 3) uint8, BGR, one frame per chunk
 WRENCH = "wrench"  # (N, 6) float64: Fx Fy Fz [N], Mx My Mz [N·mm]
@@ -14,8 +21,9 @@ T_CAPTURE = "t_capture_s"  # (N,) float64: scheduled capture time, protocol time
 WRENCH_SKEW = "wrench_skew_s"  # (N,) float64: distance from the frame time to the nearest gauge sample
 CAPTURE_INDEX = "capture_index"  # (N,) int64: k of the capture grid t = k / rate (no gap, no duplicate)
 STEP_INDEX = "step_index"  # (N,) int32: protocol step running at the capture
-PHASE_INDEX = "phase_index"  # (N,) int8: index into the PHASES attribute
+PHASE_INDEX = "phase_index"  # (N,) int8: index into the file's own `phases` attribute
 LEVEL = "level"  # (N,) int8: depth level, 1-based
+WRENCH_STREAM = "wrench_stream"  # (M, 7) float64: t_s on the rig clock, then the wrench, at the gauge's full rate
 
 OBJECT_IMAGE = "object/image"  # (H, W, 3) uint8: the indenter's contact face
 REFERENCE_FRAME = "reference_frame"  # (H, W, 3) uint8: no-contact frame taken at the start
@@ -63,22 +71,55 @@ class Field:
     units: str
     per_frame: bool
     required: bool = True  # False: files written before the field existed lack it and stay valid
+    columns: tuple[str, ...] = ()  # per-frame: its columns in export/import's frames.csv (default: columns_of)
+    fill: float = 0.0  # per-frame: the value where a source lacks the field (an old file, a CSV without it)
+
+
+def columns_of(field: Field) -> tuple[str, ...]:
+    """The frames.csv columns of a per-frame field: its own names, else the path (scalar) or path_0.. path_k."""
+    if field.columns:
+        return field.columns
+    if not field.shape:
+        return (field.path,)
+    return tuple(f"{field.path}_{i}" for i in range(field.shape[0]))
+
+
+def blank_row() -> dict:
+    """A row with every per-frame field at its fill value: the start of a synthetic row (benches, tests)."""
+    return {
+        f.path: (np.full(f.shape, f.fill, dtype=f.dtype) if f.shape else np.array(f.fill, dtype=f.dtype)[()])
+        for f in PER_FRAME_FIELDS
+    }
 
 
 # Per-frame rows: (N, *shape). None in a shape means "any size" (frame height and width).
+# Adding a per-frame field is one row here (with required=False, so older files stay
+# valid) and the executor filling its value: the writer, validate, merge, export/import,
+# the benches and the PyTorch Dataset (`fields=`) iterate this table.
 PER_FRAME_FIELDS = (
-    Field(WRENCH, (6,), "f8", "N, N, N, N·mm, N·mm, N·mm", True),
-    Field(POSE_COMMANDED, (4,), "f8", "mm, mm, mm, deg", True),
-    Field(POSE_MEASURED, (4,), "f8", "mm, mm, mm, deg", True),
+    Field(
+        WRENCH,
+        (6,),
+        "f8",
+        "N, N, N, N·mm, N·mm, N·mm",
+        True,
+        columns=("Fx_N", "Fy_N", "Fz_N", "Mx_Nmm", "My_Nmm", "Mz_Nmm"),
+    ),
+    Field(POSE_COMMANDED, (4,), "f8", "mm, mm, mm, deg", True, columns=("cx_mm", "cy_mm", "cz_mm", "ctheta_deg")),
+    Field(POSE_MEASURED, (4,), "f8", "mm, mm, mm, deg", True, columns=("x_mm", "y_mm", "z_mm", "theta_deg")),
     Field(T_FRAME, (), "f8", "s (rig clock)", True),
     Field(T_CAPTURE, (), "f8", "s (protocol time)", True),
     Field(WRENCH_SKEW, (), "f8", "s", True),
     Field(CAPTURE_INDEX, (), "i8", "", True),
     Field(STEP_INDEX, (), "i4", "", True),
-    Field(PHASE_INDEX, (), "i1", "", True),
+    Field(PHASE_INDEX, (), "i1", "", True, columns=("phase",), fill=1),  # CSV: the phase's name; 1: press
     Field(LEVEL, (), "i1", "", True),
 )
 FRAMES_FIELD = Field(FRAMES, (None, None, 3), "u1", "BGR, 0-255", True)
+# Per-run datasets that grow during the run, each row its own time stamp (first column).
+STREAM_FIELDS = (
+    Field(WRENCH_STREAM, (None, 7), "f8", "s (rig clock), N, N, N, N·mm, N·mm, N·mm", False, required=False),
+)
 FIXED_FIELDS = (
     Field(OBJECT_IMAGE, (None, None, 3), "u1", "", False),
     Field(REFERENCE_FRAME, (None, None, 3), "u1", "", False),
@@ -86,12 +127,29 @@ FIXED_FIELDS = (
     Field(STATUS_REASON, (), f"S{REASON_LEN}", "", False),
     Field(SIM_SOLVER_WARNINGS, (), "i8", "count", False, required=False),
 )
-FIELDS = (FRAMES_FIELD, *PER_FRAME_FIELDS, *FIXED_FIELDS)
+FIELDS = (FRAMES_FIELD, *PER_FRAME_FIELDS, *STREAM_FIELDS, *FIXED_FIELDS)
 
 # Root attributes and the kind of value each holds: "str", "float", "int", "float[4]", "str[]".
 ATTRS = (
-    (ATTR_SCHEMA, "int"), (ATTR_SOFTWARE, "str"), (ATTR_CREATED, "str"), (ATTR_PROTOCOL_NAME, "str"),
-    (ATTR_PROTOCOL, "str"), (ATTR_RIG_CONFIG, "str"), (ATTR_OBJECT, "str"), (ATTR_OBJECT_GEOMETRY, "str"),
-    (ATTR_SENSOR_KIND, "str"), (ATTR_MM_PER_PX, "float"), (ATTR_CAPTURE_HZ, "float"),
-    (ATTR_FRAMES_PLANNED, "int"), (ATTR_CONTACT_ORIGIN, "float[4]"), (ATTR_PHASES, "str[]"),
+    (ATTR_SCHEMA, "int"),
+    (ATTR_SOFTWARE, "str"),
+    (ATTR_CREATED, "str"),
+    (ATTR_PROTOCOL_NAME, "str"),
+    (ATTR_PROTOCOL, "str"),
+    (ATTR_RIG_CONFIG, "str"),
+    (ATTR_OBJECT, "str"),
+    (ATTR_OBJECT_GEOMETRY, "str"),
+    (ATTR_SENSOR_KIND, "str"),
+    (ATTR_MM_PER_PX, "float"),
+    (ATTR_CAPTURE_HZ, "float"),
+    (ATTR_FRAMES_PLANNED, "int"),
+    (ATTR_CONTACT_ORIGIN, "float[4]"),
+    (ATTR_PHASES, "str[]"),
 )
+
+# The frames' lossless codec, chosen by bench/storage_bench.py (docs/benchmarks.md):
+# Blosc with Zstandard level 1 on bit planes. Neighbouring pixels share their high
+# bits, so bit-shuffled frames compress to 0.55 of raw (real GelSight frames) at
+# ~800 frames/s written, where gzip-1 gave 0.59 at ~280 frames/s.
+FRAME_CODEC_NAME = "blosc-zstd-1+bitshuffle"
+FRAME_CODEC = dict(hdf5plugin.Blosc(cname="zstd", clevel=1, shuffle=hdf5plugin.Blosc.BITSHUFFLE))

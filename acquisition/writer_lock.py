@@ -64,7 +64,8 @@ class WriterLock:
                 raise RunLocked(
                     f"{run_path}: being written by {holder} (lock {path}); wait for that run to end or stop it. "
                     f"The lock dies with its process, so it cannot be stale on a local disk; on a network "
-                    f"filesystem, if that process is gone, delete {path}") from None
+                    f"filesystem, if that process is gone, delete {path}"
+                ) from None
             # The previous holder may have removed the sidecar between our open and our
             # flock: then we locked an unlinked file, and must lock the one at the path.
             try:

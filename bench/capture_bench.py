@@ -1,6 +1,6 @@
 """Capture timing on the simulated rig in real time, and the run writer's top rate.
 
-    .venv/bin/python bench/capture_bench.py [--seconds 30] [--frames 1500]
+    .venv/bin/python bench/capture_bench.py [--frames 1500] [--writer-only]
 
 1. A protocol run on the simulated rig with the real clock (not the discrete-event
    clock `rig run-protocol --sim` uses): trigger jitter = frame timestamp − scheduled
@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from acquisition import schema as S
 from acquisition.executor import Acquisition
 from acquisition.run_file import RunHeader, RunWriter
 from protocols.plan import PHASES, Plan
@@ -36,8 +37,12 @@ def pct(values, q):
 
 def timing(seconds: float) -> None:
     base = load_protocol("sphere10mm").text
-    text = (base.replace("max_depth_mm = 1.6", "max_depth_mm = 0.4").replace("speed_mm_s = 0.01", "speed_mm_s = 0.05")
-            .replace("shear_mm = 2.0", "shear_mm = 0.25").replace("twist_deg = 5.0", "twist_deg = 1.0"))
+    text = (
+        base.replace("max_depth_mm = 1.6", "max_depth_mm = 0.4")
+        .replace("speed_mm_s = 0.01", "speed_mm_s = 0.05")
+        .replace("shear_mm = 2.0", "shear_mm = 0.25")
+        .replace("twist_deg = 5.0", "twist_deg = 1.0")
+    )
     protocol = parse_protocol(text, "bench.toml")
     plan = Plan.of(protocol)
     clock = SystemClock()
@@ -50,39 +55,59 @@ def timing(seconds: float) -> None:
             wall = time.perf_counter() - t
     jitter = [1e3 * x for x in result.trigger_lag_s]
     skew = [1e3 * x for x in result.skews_s]
-    print(f"real-time run: {result.frames} frames at 1 Hz ({plan.captured_duration_s:.0f} s captured, {wall:.0f} s wall), "
-          f"status {result.status}\n")
+    print(
+        f"real-time run: {result.frames} frames at 1 Hz "
+        f"({plan.captured_duration_s:.0f} s captured, {wall:.0f} s wall), "
+        f"status {result.status}\n"
+    )
     print("| measure | p50 ms | p99 ms | max ms |\n|---|---|---|---|")
-    print(f"| trigger jitter (frame time − scheduled) | {pct(jitter, .5):.2f} | {pct(jitter, .99):.2f} | {max(jitter):.2f} |")
-    print(f"| wrench–frame skew | {pct(skew, .5):.2f} | {pct(skew, .99):.2f} | {max(skew):.2f} |")
+    print(
+        f"| trigger jitter (frame time − scheduled) | {pct(jitter, 0.5):.2f} | {pct(jitter, 0.99):.2f} "
+        f"| {max(jitter):.2f} |"
+    )
+    print(f"| wrench–frame skew | {pct(skew, 0.5):.2f} | {pct(skew, 0.99):.2f} | {max(skew):.2f} |")
 
 
-def writer(frames: int) -> None:
-    rng = np.random.default_rng(0)
-    images = rng.integers(0, 256, (16, 256, 256, 3), dtype=np.uint8)
+def simulated_images(n: int) -> np.ndarray:
+    from objects.pose import Pose
+    from sensor_sim.scene import Scene
+
+    scene = Scene("sphere10mm", "rgb", seed=1)
+    return np.stack([scene.frame(Pose(0.3 * np.sin(i), 0.0, -0.2 - 1.4 * i / n, 0.0)).image for i in range(n)])
+
+
+def writer(frames: int, images: np.ndarray, what: str, compress: bool) -> None:
     header = RunHeader("bench", "", "", "sphere10mm", "", "rgb", 14 / 256, 1.0, frames, (0, 0, 0, 0), PHASES)
-    row = {"wrench": np.zeros(6), "pose_commanded": np.zeros(4), "pose_measured": np.zeros(4), "t_frame_s": 0.0,
-           "t_capture_s": 0.0, "wrench_skew_s": 0.0, "capture_index": 0, "step_index": 0, "phase_index": 0, "level": 0}
+    row = S.blank_row()  # every per-frame field of the table: a field added there needs nothing here
     with tempfile.TemporaryDirectory() as tmp:
-        w = RunWriter.create(Path(tmp) / "w.h5", header, (256, 256, 3), images[0], images[0])
+        w = RunWriter.create(Path(tmp) / "w.h5", header, (256, 256, 3), images[0], images[0], compress=compress)
         t = time.perf_counter()
         for i in range(frames):
-            row["capture_index"] = i
-            w.append(images[i % 16], **row)
+            row[S.CAPTURE_INDEX] = i
+            w.append(images[i % len(images)], **row)
         dt = time.perf_counter() - t
         w.close()
-    mb = frames * 256 * 256 * 3 / 1e6
-    print(f"\nwriter: {frames} frames of 256x256x3, flushed per frame (SWMR): {frames / dt:.0f} frames/s, "
-          f"{mb / dt:.0f} MB/s")
+        size = (Path(tmp) / "w.h5").stat().st_size
+    print(f"| {what} | {S.FRAME_CODEC_NAME if compress else 'none'} | {frames / dt:.0f} | {size / frames / 1e3:.1f} |")
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--frames", type=int, default=1500)
+    ap.add_argument("--writer-only", action="store_true", help="skip the real-time run (part 1)")
     args = ap.parse_args()
     print(f"machine: {platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}\n")
-    timing(0)
-    writer(args.frames)
+    if not args.writer_only:
+        timing(0)
+    print(f"\nwriter: {args.frames} frames of 256x256x3, flushed one by one (SWMR)\n")
+    print("| frames | codec | frames/s | KB/frame on disk |\n|---|---|---|---|")
+    rng = np.random.default_rng(0)
+    for what, images in (
+        ("simulated rgb", simulated_images(16)),
+        ("random (incompressible)", rng.integers(0, 256, (16, 256, 256, 3), dtype=np.uint8)),
+    ):
+        for compress in (False, True):
+            writer(args.frames, images, what, compress)
 
 
 if __name__ == "__main__":

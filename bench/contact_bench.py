@@ -63,8 +63,18 @@ def hertz_rows(sizes, tols, repeats):
         for tol in tols:
             s, ms = timed_solve(k, h, d, tol, repeats)
             a_num = math.sqrt(s.contact_area_mm2 / math.pi)
-            rows.append(("Hertz", n, tol, _iterations(s), (s.force_N - F) / F, (a_num - a) / a,
-                         (s.pressure_MPa.max() - p0) / p0, ms))
+            rows.append(
+                (
+                    "Hertz",
+                    n,
+                    tol,
+                    _iterations(s),
+                    (s.force_N - F) / F,
+                    (a_num - a) / a,
+                    (s.pressure_MPa.max() - p0) / p0,
+                    ms,
+                )
+            )
     return rows
 
 
@@ -91,8 +101,10 @@ def main() -> None:
     args = ap.parse_args()
     sizes, tols = (32, 64, 128, 256), tuple(float(t) for t in args.tols.split(","))
     rows = hertz_rows(sizes, tols, args.repeats) + punch_rows(sizes, tols, args.repeats)
-    print(f"machine: {platform.machine()}, {os.cpu_count()} cores (one used), Python {platform.python_version()}, "
-          f"numpy {np.__version__}\n")
+    print(
+        f"machine: {platform.machine()}, {os.cpu_count()} cores (one used), Python {platform.python_version()}, "
+        f"numpy {np.__version__}\n"
+    )
     print("| case | grid | tol | iterations | force err % | radius err % | peak p err % | ms / solve |")
     print("|---|---|---|---|---|---|---|---|")
     for case, n, tol, it, ef, ea, ep, ms in rows:

@@ -20,21 +20,27 @@ import numpy as np
 
 
 def synthetic_split(tmp: Path) -> Path:
+    from acquisition import schema as S
     from acquisition.run_file import RunHeader, RunWriter
     from dataset.split import make_split
-    from protocols.plan import PHASES
     from objects.indenters import get_indenter
+    from protocols.plan import PHASES
 
     rng = np.random.default_rng(0)
     frames = rng.integers(0, 256, (32, 256, 256, 3), dtype=np.uint8)
     header = RunHeader("bench", "", "", "sphere10mm", "", "rgb", 14 / 256, 1.0, 3000, (0, 0, 0, 0), PHASES)
     obj = get_indenter("sphere10mm").object_image(256, 14 / 256)
     w = RunWriter.create(tmp / "bench.h5", header, (256, 256, 3), obj, frames[0])
+    row = S.blank_row()  # every per-frame field of the table: a field added there needs nothing here
     for i in range(3000):
-        w.append(frames[i % 32], wrench=rng.normal(size=6), pose_commanded=np.zeros(4),
-                 pose_measured=np.array([rng.uniform(-2, 2), rng.uniform(-2, 2), -1.0, rng.uniform(0, 5)]),
-                 t_frame_s=float(i), t_capture_s=float(i), wrench_skew_s=0.0, capture_index=i, step_index=0,
-                 phase_index=0, level=1)
+        row |= {
+            S.WRENCH: rng.normal(size=6),
+            S.T_FRAME: float(i),
+            S.T_CAPTURE: float(i),
+            S.CAPTURE_INDEX: i,
+            S.POSE_MEASURED: np.array([rng.uniform(-2, 2), rng.uniform(-2, 2), -1.0, rng.uniform(0, 5)]),
+        }
+        w.append(frames[i % 32], **row)
     w.set_status("complete")
     w.close()
     make_split([tmp / "bench.h5"], "8:2", tmp / "split")
@@ -58,12 +64,20 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         split = args.split or synthetic_split(Path(tmp))
         ds = TactileDataset(split, "train", size=args.size)
-        print(f"machine: {platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}, "
-              f"torch {torch.__version__}\n")
+        print(
+            f"machine: {platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}, "
+            f"torch {torch.__version__}\n"
+        )
         print("| workers | size | batch | samples/s | MB/s of frames |\n|---|---|---|---|---|")
         for workers in sorted({0, args.workers}):
-            loader = DataLoader(ds, batch_size=args.batch, shuffle=True, num_workers=workers,
-                                persistent_workers=workers > 0, generator=torch.Generator().manual_seed(0))
+            loader = DataLoader(
+                ds,
+                batch_size=args.batch,
+                shuffle=True,
+                num_workers=workers,
+                persistent_workers=workers > 0,
+                generator=torch.Generator().manual_seed(0),
+            )
             it = iter(loader)
             next(it)  # start the workers before timing
             n, t = 0, time.perf_counter()

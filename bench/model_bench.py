@@ -1,12 +1,14 @@
 """Training and sampling throughput of the denoiser, per preset and image size.
 
     .venv/bin/python bench/model_bench.py [--preset tiny | --config FILE] [--size 32] [--batch 16] [--steps 10,25,50]
-                                          [--device cpu|cuda] [--precision no|bf16|fp16]
+                                          [--device cpu|cuda] [--precision no|bf16|fp16] [--guidance 1]
+                                          [--threads N]
 
-Training: images/s of optimisation steps (forward, ε-loss, backward, Adam, EMA) on
-random tensors, so the number is the model's, not the data loader's (bench/dataset_bench.py
-measures that). Sampling: images/s and seconds per image for each sampler and step count,
-a batch at a time, as `evaluate` generates.
+Training: images/s of optimisation steps (forward, the diffusion loss of the configured
+target, backward, Adam, EMA) on random tensors, so the number is the model's, not the data
+loader's (bench/dataset_bench.py measures that). Sampling: images/s and seconds per image
+for each sampler and step count, a batch at a time, as `evaluate` generates (with
+--guidance w ≠ 1, each step is one forward pass over twice the batch).
 """
 
 from __future__ import annotations
@@ -30,13 +32,18 @@ def main() -> None:
     ap.add_argument("--samplers", default="ddim,dpm", help="samplers (default ddim,dpm)")
     ap.add_argument("--device", default="cuda" if _cuda() else "cpu")
     ap.add_argument("--precision", default="no", help="training autocast: no, bf16 or fp16 (default no)")
+    ap.add_argument("--guidance", type=float, default=1.0, help="classifier-free guidance weight (default 1: none)")
+    ap.add_argument("--threads", type=int, default=None, help="torch CPU threads (default: torch's choice)")
     args = ap.parse_args()
 
     import torch
 
     from model.config import preset
     from model.diffusion import Diffusion
-    from model.network import ContactDenoiser
+    from model.registry import build_network
+
+    if args.threads:
+        torch.set_num_threads(args.threads)
 
     over = {k: v for k, v in (("image_size", args.size), ("conditioning", args.conditioning)) if v is not None}
     if args.config:
@@ -49,8 +56,8 @@ def main() -> None:
         cfg = preset(args.preset, **over)
     dev = torch.device(args.device)
     torch.manual_seed(0)
-    net = ContactDenoiser(cfg).to(dev)
-    ema = ContactDenoiser(cfg).to(dev).eval().requires_grad_(False)
+    net = build_network(cfg).to(dev)
+    ema = build_network(cfg).to(dev).eval().requires_grad_(False)
     opt = torch.optim.Adam(net.parameters(), lr=2e-4)
     diff = Diffusion(cfg)
     s, b = cfg.image_size, args.batch
@@ -82,13 +89,19 @@ def main() -> None:
     train_s = (time.perf_counter() - t0) / args.train_steps
     params = sum(p.numel() for p in net.parameters())
 
-    print(f"machine: {platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}, "
-          f"torch {torch.__version__}, device {dev}"
-          + (f" ({torch.cuda.get_device_name()})" if dev.type == "cuda" else f", {torch.get_num_threads()} threads"))
-    print(f"model: {args.config or 'preset ' + args.preset}, {s} px, widths {list(cfg.block_out_channels)}, {cfg.conditioning}, "
-          f"{params / 1e6:.2f} M parameters")
-    print(f"\ntraining, batch {b}, precision {args.precision}: {train_s * 1e3:.1f} ms/step, {b / train_s:.1f} images/s\n")
-    print(f"| sampler | steps | s / image | images/s (batch {args.sample_batch}) |")
+    print(
+        f"machine: {platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}, "
+        f"torch {torch.__version__}, device {dev}"
+        + (f" ({torch.cuda.get_device_name()})" if dev.type == "cuda" else f", {torch.get_num_threads()} threads")
+    )
+    print(
+        f"model: {args.config or 'preset ' + args.preset}, {cfg.network}, {s} px, "
+        f"widths {list(cfg.block_out_channels)}, {cfg.conditioning}, {params / 1e6:.2f} M parameters"
+    )
+    print(
+        f"\ntraining, batch {b}, precision {args.precision}: {train_s * 1e3:.1f} ms/step, {b / train_s:.1f} images/s\n"
+    )
+    print(f"| sampler | steps | s / image | images/s (batch {args.sample_batch}, guidance {args.guidance:g}) |")
     print("|---|---|---|---|")
     sb = args.sample_batch
     scond = torch.rand(sb, 3, s, s, device=dev) * 2 - 1
@@ -99,7 +112,7 @@ def main() -> None:
         for steps in (int(x) for x in args.steps.split(",")):
             sync()
             t0 = time.perf_counter()
-            diff.sample(ema, scond, swrench, steps=steps, sampler=sampler)
+            diff.sample(ema, scond, swrench, steps=steps, sampler=sampler, guidance=args.guidance)
             sync()
             dt = time.perf_counter() - t0
             print(f"| {sampler} | {steps} | {dt / sb:.4f} | {sb / dt:.1f} |")

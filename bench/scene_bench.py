@@ -33,7 +33,9 @@ def path(phase: str, n: int = 12):
 
 def main() -> None:
     print(f"machine: {platform.machine()}, {os.cpu_count()} cores (one used), Python {platform.python_version()}\n")
-    print("| indenter | sensor | phase | solve ms p50 / p90 | render ms p50 | frame ms p50 / p90 | forces-only ms p50 |")
+    print(
+        "| indenter | sensor | phase | solve ms p50 / p90 | render ms p50 | frame ms p50 / p90 | forces-only ms p50 |"
+    )
     print("|---|---|---|---|---|---|---|")
     for name in ("sphere10mm", "circle8mm", "heart"):
         for phase in ("press", "shear", "twist"):
@@ -56,8 +58,10 @@ def main() -> None:
                 force_only.append((t3 - t2) * 1e3)
             p90 = lambda v: sorted(v)[int(0.9 * (len(v) - 1))]
             med = statistics.median
-            print(f"| {name} | rgb_markers | {phase} | {med(solve):.1f} / {p90(solve):.1f} | {med(render):.1f} | "
-                  f"{med(frame):.1f} / {p90(frame):.1f} | {med(force_only):.1f} |")
+            print(
+                f"| {name} | rgb_markers | {phase} | {med(solve):.1f} / {p90(solve):.1f} | {med(render):.1f} | "
+                f"{med(frame):.1f} / {p90(frame):.1f} | {med(force_only):.1f} |"
+            )
 
 
 if __name__ == "__main__":

@@ -13,14 +13,18 @@ from cli import model_app
 from cli.dataset_app import app as dataset
 from cli.rig_app import app as rig
 
-model = typer.Typer(help="The contact-condition-guided diffusion model: train, generate, evaluate.",
-                    no_args_is_help=True, add_completion=False)
+model = typer.Typer(
+    help="The contact-condition-guided diffusion model: train, generate, evaluate.",
+    no_args_is_help=True,
+    add_completion=False,
+)
 model.command("train")(model_app.train)
 model.command("generate")(model_app.generate)
 model.command("evaluate")(model_app.evaluate)
 
-app = typer.Typer(help="Tactile-sensing lab tool: the rig, datasets and the model.", no_args_is_help=True,
-                  add_completion=False)
+app = typer.Typer(
+    help="Tactile-sensing lab tool: the rig, datasets and the model.", no_args_is_help=True, add_completion=False
+)
 app.add_typer(rig, name="rig")
 app.add_typer(dataset, name="dataset")
 app.add_typer(model, name="model")

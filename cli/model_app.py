@@ -16,8 +16,8 @@ def one_line_errors(fn):
 
     @functools.wraps(fn)
     def wrapper(*args, **kwargs):
-        from model.checkpoint import CheckpointError
         from common.errors import ToolError
+        from model.checkpoint import CheckpointError
 
         try:
             return fn(*args, **kwargs)
@@ -33,30 +33,57 @@ def one_line_errors(fn):
 @one_line_errors
 def train(
     data: Annotated[Path, typer.Option(help="A split directory from `dataset split` (split.json + index files).")],
-    out: Annotated[Path, typer.Option(
-        help="Run directory: checkpoint/ (safetensors) and samples/ (validation PNGs) are written here.")],
-    config: Annotated[Optional[Path], typer.Option(
-        help="A model TOML: preset, [model] and [train] tables (docs/model.md). Options given here win. Default: none (the preset).")] = None,
-    preset: Annotated[Optional[str], typer.Option(
-        help="Model size: tiny (CPU, 32 px) or paper (GPU, 256 px). Default: the config's, else tiny.")] = None,
+    out: Annotated[
+        Path,
+        typer.Option(help="Run directory: checkpoint/ (safetensors) and samples/ (validation PNGs) are written here."),
+    ],
+    config: Annotated[
+        Optional[Path],
+        typer.Option(
+            help="A model TOML: preset, [model] and [train] tables (docs/model.md). Options given here win. "
+            "Default: none (the preset)."
+        ),
+    ] = None,
+    preset: Annotated[
+        Optional[str],
+        typer.Option(help="Model size: tiny (CPU, 32 px) or paper (GPU, 256 px). Default: the config's, else tiny."),
+    ] = None,
     image_size: Annotated[Optional[int], typer.Option(help="Image side in px (default: the preset's).", min=8)] = None,
-    conditioning: Annotated[Optional[str], typer.Option(
-        help="Wrench conditioning: plane, embedding or plane+embedding (default: the preset's).")] = None,
-    prediction: Annotated[Optional[str], typer.Option(
-        help="Network target: sample (y0), epsilon (the paper's) or v_prediction (default: the preset's, sample).")] = None,
+    conditioning: Annotated[
+        Optional[str],
+        typer.Option(help="Wrench conditioning: plane, embedding or plane+embedding (default: the preset's)."),
+    ] = None,
+    prediction: Annotated[
+        Optional[str],
+        typer.Option(
+            help="Network target: sample (y0), epsilon (the paper's) or v_prediction (default: the preset's, sample)."
+        ),
+    ] = None,
     steps: Annotated[Optional[int], typer.Option(help="Optimisation steps in all (default 2000).", min=1)] = None,
-    batch_size: Annotated[Optional[int], typer.Option(help="Images per step, over all GPUs (default 16).", min=1)] = None,
-    lr: Annotated[Optional[float], typer.Option(
-        help="Adam learning rate (default: the preset's, 1e-3 tiny, 2e-4 paper).", min=0.0)] = None,
-    checkpoint_every: Annotated[Optional[int], typer.Option(help="Steps between checkpoints (default 500).", min=1)] = None,
-    sample_every: Annotated[Optional[int], typer.Option(
-        help="Steps between validation sample PNGs; 0: never (default 500).", min=0)] = None,
-    seed: Annotated[Optional[int], typer.Option(help="Seed of the weights, the data order and the noise (default 0).")] = None,
-    mixed_precision: Annotated[Optional[str], typer.Option(
-        help="auto (bf16/fp16 on CUDA, none on CPU), no, fp16 or bf16 (default auto).")] = None,
+    batch_size: Annotated[
+        Optional[int], typer.Option(help="Images per step, over all GPUs (default 16).", min=1)
+    ] = None,
+    lr: Annotated[
+        Optional[float],
+        typer.Option(help="Adam learning rate (default: the preset's, 1e-3 tiny, 2e-4 paper).", min=0.0),
+    ] = None,
+    checkpoint_every: Annotated[
+        Optional[int], typer.Option(help="Steps between checkpoints (default 500).", min=1)
+    ] = None,
+    sample_every: Annotated[
+        Optional[int], typer.Option(help="Steps between validation sample PNGs; 0: never (default 500).", min=0)
+    ] = None,
+    seed: Annotated[
+        Optional[int], typer.Option(help="Seed of the weights, the data order and the noise (default 0).")
+    ] = None,
+    mixed_precision: Annotated[
+        Optional[str], typer.Option(help="auto (bf16/fp16 on CUDA, none on CPU), no, fp16 or bf16 (default auto).")
+    ] = None,
     resume: Annotated[bool, typer.Option(help="Continue from OUT/checkpoint exactly where it stopped.")] = False,
-    device: Annotated[Optional[str], typer.Option(
-        help="cpu or cuda (default: cuda when available; under `accelerate launch`, each process's GPU).")] = None,
+    device: Annotated[
+        Optional[str],
+        typer.Option(help="cpu or cuda (default: cuda when available; under `accelerate launch`, each process's GPU)."),
+    ] = None,
 ):
     """Train the denoiser; progress shows the loss and images/s; checkpoints are safetensors.
 
@@ -64,30 +91,45 @@ def train(
     """
     import dataclasses
 
-    from model.config import PRESET_TRAINING, preset as make_preset
+    from model.build import build
+    from model.config import PRESET_TRAINING
+    from model.config import preset as make_preset
     from model.config_file import load_model_file
-    from model.trainer import TrainConfig, Trainer
+    from model.trainer import TrainConfig
 
     if config is not None:
         model_cfg, train_fields = load_model_file(config, preset)
     else:
         model_cfg, train_fields = make_preset(preset or "tiny"), dict(PRESET_TRAINING.get(preset or "tiny", {}))
-    model_over = {k: v for k, v in (("image_size", image_size), ("conditioning", conditioning),
-                                     ("prediction", prediction)) if v is not None}
+    model_over = {
+        k: v
+        for k, v in (("image_size", image_size), ("conditioning", conditioning), ("prediction", prediction))
+        if v is not None
+    }
     if model_over:
         model_cfg = dataclasses.replace(model_cfg, **model_over)
-    given = {"steps": steps, "batch_size": batch_size, "lr": lr, "checkpoint_every": checkpoint_every,
-             "sample_every": sample_every, "seed": seed, "mixed_precision": mixed_precision}
+    given = {
+        "steps": steps,
+        "batch_size": batch_size,
+        "lr": lr,
+        "checkpoint_every": checkpoint_every,
+        "sample_every": sample_every,
+        "seed": seed,
+        "mixed_precision": mixed_precision,
+    }
     cfg = TrainConfig(**{**train_fields, **{k: v for k, v in given.items() if v is not None}})
-    trainer = Trainer(model_cfg, cfg, data, out, device=device, log=typer.echo)
+    trainer = build(model_cfg, cfg, data, out, device=device, log=typer.echo)
+    say = typer.echo if trainer.is_main else (lambda line: None)
     if resume:
         trainer.resume()
-        trainer.log(f"resumed at step {trainer.step}")
-    trainer.log(f"model: {model_cfg.image_size} px, widths {list(model_cfg.block_out_channels)}, "
-               f"{model_cfg.conditioning}; {len(trainer.data)} training frames; device {trainer.device}"
-               + (f" x {trainer.acc.num_processes} processes" if trainer.acc.num_processes > 1 else ""))
+        say(f"resumed at step {trainer.step}")
+    say(
+        f"model: {model_cfg.network}, {model_cfg.image_size} px, widths {list(model_cfg.block_out_channels)}, "
+        f"{model_cfg.conditioning}; {len(trainer.data)} training frames; device {trainer.device}"
+        + (f" x {trainer.acc.num_processes} processes" if trainer.acc.num_processes > 1 else "")
+    )
     trainer.train()
-    trainer.log(f"checkpoint: {trainer.save()}")
+    say(f"checkpoint: {trainer.save()}")
 
 
 generate_app = typer.Typer(add_completion=False)
@@ -108,33 +150,57 @@ def _numbers(text: str, n: int, what: str) -> list[float]:
 def generate(
     checkpoint: Annotated[Path, typer.Option(help="A run directory written by `train`.")],
     out: Annotated[Path, typer.Option(help="The generated frame (PNG); with --split, a folder of PNGs.")],
-    object_image: Annotated[Optional[str], typer.Option("--object", help=(
-        "The object: a PNG/JPEG of its contact face spanning the sensor's field of view, a library object name "
-        "(e.g. sphere10mm) or a run file (.h5, its object image); needed unless --split (default: none)."))] = None,
-    wrench: Annotated[Optional[str], typer.Option(help="Fx,Fy,Fz (N),Mx,My,Mz (N·mm); needed unless --split (default: none).")] = None,
+    object_image: Annotated[
+        Optional[str],
+        typer.Option(
+            "--object",
+            help=(
+                "The object: a PNG/JPEG of its contact face spanning the sensor's field of view, a library object name "
+                "(e.g. sphere10mm) or a run file (.h5, its object image); needed unless --split (default: none)."
+            ),
+        ),
+    ] = None,
+    wrench: Annotated[
+        Optional[str], typer.Option(help="Fx,Fy,Fz (N),Mx,My,Mz (N·mm); needed unless --split (default: none).")
+    ] = None,
     pose: Annotated[str, typer.Option(help="x,y (mm),theta (deg) of the object on the sensor.")] = "0,0,0",
-    split: Annotated[Optional[Path], typer.Option(
-        help="Instead of --object/--wrench: generate every frame of a split's part (conditions from its runs). Default: none.")] = None,
+    split: Annotated[
+        Optional[Path],
+        typer.Option(
+            help="Instead of --object/--wrench: generate every frame of a split's part (conditions from its runs). "
+            "Default: none."
+        ),
+    ] = None,
     part: Annotated[str, typer.Option(help="With --split: the part to generate (train, val or test).")] = "test",
-    limit: Annotated[Optional[int], typer.Option(help="With --split: at most this many frames, spread evenly (default: all).", min=1)] = None,
+    limit: Annotated[
+        Optional[int], typer.Option(help="With --split: at most this many frames, spread evenly (default: all).", min=1)
+    ] = None,
     steps: Annotated[int, typer.Option(help="Sampler steps.", min=1, max=1000)] = 50,
     sampler: Annotated[str, typer.Option(help="ddim, ddpm or dpm.")] = "ddim",
     guidance: Annotated[float, typer.Option(help="Classifier-free guidance weight (1: none).", min=0.0)] = 1.0,
     seed: Annotated[int, typer.Option(help="Noise seed: the same seed gives the same frames.")] = 0,
-    size: Annotated[Optional[int], typer.Option(
-        help="Write the frame at this many pixels square (default: the model's own size; larger is upsampled, and "
-             "says so).", min=8, max=4096)] = None,
+    size: Annotated[
+        Optional[int],
+        typer.Option(
+            help="Write the frame at this many pixels square (default: the model's own size; larger is upsampled, and "
+            "says so).",
+            min=8,
+            max=4096,
+        ),
+    ] = None,
     device: Annotated[Optional[str], typer.Option(help="cpu or cuda (default: cuda when available).")] = None,
 ):
     """Generate a tactile frame for an object, a wrench and a pose, or every frame of a split."""
     import cv2
+    import numpy as np
 
     from model.inference import TrainedModel
 
     model = TrainedModel.load(checkpoint, _device(device))
     if split is not None:
-        written = model.generate_split(split, part, out, limit=limit, steps=steps, sampler=sampler, seed=seed,
-                                       guidance=guidance, log=typer.echo)
+        written = model.generate_split(
+            split, part, out, limit=limit, steps=steps, sampler=sampler, seed=seed, guidance=guidance, log=typer.echo
+        )
         typer.echo(f"{out}: {written} frames (PNG, named RUN-FRAME.png) and index.csv")
         return
     if object_image is None or wrench is None:
@@ -142,7 +208,7 @@ def generate(
     w = _numbers(wrench, 6, "--wrench")
     p = _numbers(pose, 3, "--pose")
     img = _object_image(object_image, model.frame_px, model.mm_per_px)
-    frame = model.generate(img, w, p, steps=steps, sampler=sampler, seed=seed, guidance=guidance)
+    frame = model.generate(img, np.asarray(w), p, steps=steps, sampler=sampler, seed=seed, guidance=guidance)
     native = frame.shape[0]
     note = f"the model's own size, {native}x{native}"
     if size is not None and size != native:
@@ -186,8 +252,9 @@ def _object_image(source: str, frame_px: int, mm_per_px: float):
     from objects.indenters import INDENTERS, get_indenter
 
     if source not in INDENTERS:
-        raise ValueError(f"--object {source!r}: not an image or run file, nor a library object "
-                         f"({', '.join(INDENTERS)})")
+        raise ValueError(
+            f"--object {source!r}: not an image or run file, nor a library object ({', '.join(INDENTERS)})"
+        )
     return get_indenter(source).object_image(frame_px, mm_per_px)
 
 
@@ -214,16 +281,26 @@ def evaluate(
     checkpoint: Annotated[Path, typer.Option(help="A run directory written by `train`.")],
     split: Annotated[Path, typer.Option(help="The split directory; its test part is evaluated.")],
     out: Annotated[Path, typer.Option(help="Folder for report.md, metrics.json and the figures (PNG).")],
-    settings: Annotated[str, typer.Option(
-        help="Sampler settings as sampler:steps, comma-separated (ddim, ddpm, dpm); each is a row and a "
-             "point on the error-against-run-time plot.")] = "ddim:10,ddim:25,ddim:50",
+    settings: Annotated[
+        str,
+        typer.Option(
+            help="Sampler settings as sampler:steps, comma-separated (ddim, ddpm, dpm); each is a row and a "
+            "point on the error-against-run-time plot."
+        ),
+    ] = "ddim:10,ddim:25,ddim:50",
     part: Annotated[str, typer.Option(help="The split part to evaluate.")] = "test",
-    limit: Annotated[Optional[int], typer.Option(
-        help="At most this many frames, spread evenly over the part (default: all).", min=1)] = None,
-    markers: Annotated[Optional[bool], typer.Option(
-        "--markers/--no-markers", help="Marker displacement error (default: when the sensor has markers).")] = None,
-    baseline: Annotated[bool, typer.Option(
-        help="The physics-render row: the simulator's render of each frame at its measured pose.")] = True,
+    limit: Annotated[
+        Optional[int], typer.Option(help="At most this many frames, spread evenly over the part (default: all).", min=1)
+    ] = None,
+    markers: Annotated[
+        Optional[bool],
+        typer.Option(
+            "--markers/--no-markers", help="Marker displacement error (default: when the sensor has markers)."
+        ),
+    ] = None,
+    baseline: Annotated[
+        bool, typer.Option(help="The physics-render row: the simulator's render of each frame at its measured pose.")
+    ] = True,
     batch_size: Annotated[int, typer.Option(help="Frames generated at once (memory).", min=1)] = 64,
     seed: Annotated[int, typer.Option(help="Noise seed.")] = 0,
     device: Annotated[Optional[str], typer.Option(help="cpu or cuda (default: cuda when available).")] = None,
@@ -232,19 +309,32 @@ def evaluate(
     physics render and the paper's table."""
     import torch
 
-    from model.evaluate import evaluate as run, report
+    from model.evaluate import evaluate as run
+    from model.evaluate import report
 
     try:
         pairs = [(s.split(":")[0], int(s.split(":")[1])) for s in settings.split(",")]
     except (IndexError, ValueError):
         raise typer.BadParameter(f"--settings: expected sampler:steps[,sampler:steps...], got {settings!r}") from None
-    ev = run(checkpoint, split, part=part, settings=pairs, limit=limit, markers=markers, baseline=baseline,
-             seed=seed, batch_size=batch_size, device=device or ("cuda" if torch.cuda.is_available() else "cpu"),
-             log=typer.echo)
+    ev = run(
+        checkpoint,
+        split,
+        part=part,
+        settings=pairs,
+        limit=limit,
+        markers=markers,
+        baseline=baseline,
+        seed=seed,
+        batch_size=batch_size,
+        device=device or ("cuda" if torch.cuda.is_available() else "cpu"),
+        log=typer.echo,
+    )
     for r in ev.rows + ([ev.baseline] if ev.baseline else []):
         mk = "" if r.marker_px is None else f"  markers {r.marker_px:.2f} px"
-        typer.echo(f"{r.setting:>16}: MSE {r.mse:7.2f}  MAE {r.mae:5.2f}  SSIM {r.ssim:.3f}  PSNR {r.psnr:5.2f}"
-                   f"{mk}  {r.seconds_per_image:.4f} s/image")
+        typer.echo(
+            f"{r.setting:>16}: MSE {r.mse:7.2f}  MAE {r.mae:5.2f}  SSIM {r.ssim:.3f}  PSNR {r.psnr:5.2f}"
+            f"{mk}  {r.seconds_per_image:.4f} s/image"
+        )
     typer.echo(f"report: {report(ev, out, title=f'Evaluation of {checkpoint} on {split} ({part})')}")
 
 

@@ -22,7 +22,9 @@ def number(*, low: float | None = None, high: float | None = None, positive: boo
             return value
         problem = number_problem(value, low=low, high=high, positive=positive)
         if problem:
-            raise typer.BadParameter(problem, ctx=ctx, param=param)
+            # typer annotates `param` with its private parameter class, but hands callbacks a
+            # CallbackParam (the click.Parameter it is): typer's own mismatch, fine at run time.
+            raise typer.BadParameter(problem, ctx=ctx, param=param)  # type: ignore[arg-type]
         return value
 
     return check

@@ -30,8 +30,9 @@ def list_protocols() -> None:
     for name in protocol_names():
         p = load_protocol(name)
         plan = Plan.of(p)
-        table.add_row(name, p.object, p.sensor, str(len(p.levels)), fmt_duration(plan.total_duration_s),
-                      str(plan.frame_count))
+        table.add_row(
+            name, p.object, p.sensor, str(len(p.levels)), fmt_duration(plan.total_duration_s), str(plan.frame_count)
+        )
     console.print(table)
 
 
@@ -46,16 +47,29 @@ def show_protocol(name: str, frame_px: int = 256, settings: list[str] | None = N
     for col in ("#", "phase", "level", "to x, y, z mm / θ deg", "speed", "duration", "captured"):
         table.add_column(col)
     for s in plan.steps:
-        speed = f"{p.speed_mm_s:g} mm/s" if s.phase in ("press", "shear", "return") else (
-            f"{p.twist_speed_deg_s:g} °/s" if s.phase in ("twist", "untwist") else f"{p.approach_speed_mm_s:g} mm/s")
-        table.add_row(str(s.index), s.phase, str(s.level or "-"),
-                      f"{s.end[0]:+.2f}, {s.end[1]:+.2f}, {s.end[2]:+.2f} / {s.end[3]:+.1f}", speed,
-                      fmt_duration(s.duration_s), "yes" if s.captured else "no")
+        speed = (
+            f"{p.speed_mm_s:g} mm/s"
+            if s.phase in ("press", "shear", "return")
+            else (
+                f"{p.twist_speed_deg_s:g} °/s" if s.phase in ("twist", "untwist") else f"{p.approach_speed_mm_s:g} mm/s"
+            )
+        )
+        table.add_row(
+            str(s.index),
+            s.phase,
+            str(s.level or "-"),
+            f"{s.end[0]:+.2f}, {s.end[1]:+.2f}, {s.end[2]:+.2f} / {s.end[3]:+.1f}",
+            speed,
+            fmt_duration(s.duration_s),
+            "yes" if s.captured else "no",
+        )
     console.print(table)
     gb = disk_bytes(plan, (frame_px, frame_px, 3)) / 1e9
     console.print(f"file: {p.path}")
-    console.print(f"duration: {fmt_duration(plan.total_duration_s)} ({plan.total_duration_s:.1f} s; "
-                  f"captured {plan.captured_duration_s:.1f} s)")
+    console.print(
+        f"duration: {fmt_duration(plan.total_duration_s)} ({plan.total_duration_s:.1f} s; "
+        f"captured {plan.captured_duration_s:.1f} s)"
+    )
     console.print(f"frames: {plan.frame_count} at {p.capture_hz:g} Hz")
     console.print(f"disk: about {gb:.2f} GB at {frame_px}x{frame_px} px (uncompressed frames)")
 
@@ -65,8 +79,9 @@ def check_new_run_path(out: Path) -> None:
     device opens, so a refused run never moves a stage and never touches an existing file;
     ConfigError names the path and says what was expected."""
     if os.path.lexists(out):  # lexists: a dangling link would be written through too
-        raise ConfigError(str(out), "--out", "exists; a run file is never overwritten: pass another --out, "
-                                             f"or --resume {out}")
+        raise ConfigError(
+            str(out), "--out", f"exists; a run file is never overwritten: pass another --out, or --resume {out}"
+        )
     directory = out.absolute().parent
     try:
         exists = directory.is_dir()
@@ -79,8 +94,17 @@ def check_new_run_path(out: Path) -> None:
         raise ConfigError(str(out), "--out", f"directory {directory} is not writable")
 
 
-def run_protocol(name: str, *, out: Path | None, resume: Path | None, dry_run: bool, config: Path | None,
-                 sim: bool, origin: tuple[float, float, float, float], settings: list[str] | None = None) -> None:
+def run_protocol(
+    name: str,
+    *,
+    out: Path | None,
+    resume: Path | None,
+    dry_run: bool,
+    config: Path | None,
+    sim: bool,
+    origin: tuple[float, float, float, float],
+    settings: list[str] | None = None,
+) -> None:
     from acquisition.executor import disk_bytes, preflight
     from protocols.plan import AXES, Plan
     from protocols.spec import load_protocol
@@ -101,6 +125,7 @@ def run_protocol(name: str, *, out: Path | None, resume: Path | None, dry_run: b
             except OSError as exc:
                 raise ConfigError(str(out), "--out", f"cannot create {out.parent}: {exc.strerror}") from None
     if resume is None and (explicit_out or not dry_run):
+        assert out is not None  # named above when neither --out nor --resume was given
         check_new_run_path(out)  # before any device opens: a refused --out moves nothing
     path = resume or out
     if dry_run:
@@ -116,8 +141,10 @@ def run_protocol(name: str, *, out: Path | None, resume: Path | None, dry_run: b
             rig_config = load_config(resolve_config_path(config))
         preflight(rig_config, plan, origin_map)
         console.print(f"dry run: {protocol.name} fits {rig_config.path}'s soft limits and speeds; nothing moved")
-        console.print(f"duration {fmt_duration(plan.total_duration_s)}, {plan.frame_count} frames, "
-                      f"about {disk_bytes(plan, (256, 256, 3)) / 1e9:.2f} GB at 256x256")
+        console.print(
+            f"duration {fmt_duration(plan.total_duration_s)}, {plan.frame_count} frames, "
+            f"about {disk_bytes(plan, (256, 256, 3)) / 1e9:.2f} GB at 256x256"
+        )
         return
     from rig.motion import SignalsAsExceptions
 
@@ -135,8 +162,16 @@ def _run_sim(protocol, plan, path, resume, origin) -> None:
     from cli.simulated import monitor_interval_s, simulated_rig_for
 
     with simulated_rig_for(protocol) as (rig, simulated, header):
-        _execute(rig, plan, path, resume, origin, header, monitor_interval_s=monitor_interval_s(protocol),
-                 solver_warnings=lambda: simulated.world.contact.solver_warnings)
+        _execute(
+            rig,
+            plan,
+            path,
+            resume,
+            origin,
+            header,
+            monitor_interval_s=monitor_interval_s(protocol),
+            solver_warnings=lambda: simulated.world.contact.solver_warnings,
+        )
 
 
 def _run_hw(protocol, plan, path, resume, origin, config) -> None:
@@ -146,7 +181,10 @@ def _run_hw(protocol, plan, path, resume, origin, config) -> None:
 
     cfg_path = resolve_config_path(config)
     cfg = load_config(cfg_path)
-    header = {"rig_config": Path(cfg_path).read_text(), "mm_per_px": cfg.camera.mm_per_px if cfg.camera else float("nan")}
+    header = {
+        "rig_config": Path(cfg_path).read_text(),
+        "mm_per_px": cfg.camera.mm_per_px if cfg.camera and cfg.camera.mm_per_px is not None else float("nan"),
+    }
     with Rig.open(cfg, camera=True) as rig:
         _execute(rig, plan, path, resume, origin, header, monitor_interval_s=None)
 
@@ -156,27 +194,49 @@ def _execute(rig, plan, path, resume, origin, header, monitor_interval_s, solver
 
     from acquisition.executor import Acquisition
 
-    with Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.completed}/{task.total} frames"),
-                  TimeRemainingColumn(), TextColumn("{task.fields[wrench]}"), console=console,
-                  transient=False) as bar:
+    with Progress(
+        TextColumn("{task.description}"),
+        BarColumn(),
+        TextColumn("{task.completed}/{task.total} frames"),
+        TimeRemainingColumn(),
+        TextColumn("{task.fields[wrench]}"),
+        console=console,
+        transient=False,
+    ) as bar:
         task = bar.add_task(plan.protocol.name, total=plan.frame_count, wrench="")
 
         def on_progress(p):
-            bar.update(task, completed=p.frame, description=f"{plan.protocol.name} L{p.level} {p.phase:8s}",
-                       wrench=f"Fz {p.wrench[2]:6.2f} N  Fx {p.wrench[0]:+5.2f}  Fy {p.wrench[1]:+5.2f}  "
-                              f"Mz {p.wrench[5]:+6.2f} N·mm")
+            bar.update(
+                task,
+                completed=p.frame,
+                description=f"{plan.protocol.name} L{p.level} {p.phase:8s}",
+                wrench=f"Fz {p.wrench[2]:6.2f} N  Fx {p.wrench[0]:+5.2f}  Fy {p.wrench[1]:+5.2f}  "
+                f"Mz {p.wrench[5]:+6.2f} N·mm",
+            )
 
-        acq = Acquisition(rig, plan, origin=origin, monitor_interval_s=monitor_interval_s, progress=on_progress,
-                          solver_warnings=solver_warnings)
+        acq = Acquisition(
+            rig,
+            plan,
+            origin=origin,
+            monitor_interval_s=monitor_interval_s,
+            progress=on_progress,
+            solver_warnings=solver_warnings,
+        )
         result = acq.run(path, resume=resume, header=header)
     colour = {"complete": "green", "interrupted": "yellow"}.get(result.status, "red")
-    console.print(f"[{colour}]{result.status}[/]: {result.frames}/{plan.frame_count} frames in {path}"
-                  + (f" — {result.reason}" if result.reason else ""))
+    console.print(
+        f"[{colour}]{result.status}[/]: {result.frames}/{plan.frame_count} frames in {path}"
+        + (f" — {result.reason}" if result.reason else "")
+    )
     if result.solver_warnings:
-        console.print(f"[yellow]warning[/]: {result.solver_warnings} contact solves of the simulated sensor stopped "
-                      "short of their tolerance (recorded in the run file as run/sim_solver_warnings)")
+        console.print(
+            f"[yellow]warning[/]: {result.solver_warnings} contact solves of the simulated sensor stopped "
+            "short of their tolerance (recorded in the run file as run/sim_solver_warnings)"
+        )
     if result.skews_s:
-        console.print(f"wrench–frame skew: median {1e3 * sorted(result.skews_s)[len(result.skews_s) // 2]:.1f} ms, "
-                      f"max {1e3 * max(result.skews_s):.1f} ms (rig clock)")
+        console.print(
+            f"wrench–frame skew: median {1e3 * sorted(result.skews_s)[len(result.skews_s) // 2]:.1f} ms, "
+            f"max {1e3 * max(result.skews_s):.1f} ms (rig clock)"
+        )
     if result.status != "complete":
         raise typer.Exit(3 if result.status == "interrupted" else 2)

@@ -17,19 +17,27 @@ import typer
 
 from cli.options import number
 from rig.config import MAX_FORCE_LIMIT_N, MAX_SPEED, TRAVEL_LIMIT
+from rig.config.registry import kinds
 
-app = typer.Typer(help="Control the tactile-sensing rig: stages, force gauge, camera. "
-                       "Every command takes --config FILE, or --sim for the built-in simulated rig.",
-                  no_args_is_help=True, add_completion=False)
-sim_app = typer.Typer(help="The built-in simulated rig (devices on ptys or loopback sockets).",
-                      no_args_is_help=True)
+app = typer.Typer(
+    help="Control the tactile-sensing rig: stages, force gauge, camera. "
+    "Every command takes --config FILE, or --sim for the built-in simulated rig.",
+    no_args_is_help=True,
+    add_completion=False,
+)
+sim_app = typer.Typer(help="The built-in simulated rig (devices on ptys or loopback sockets).", no_args_is_help=True)
 app.add_typer(sim_app, name="sim")
-protocols_app = typer.Typer(help="The protocol library: list protocols, show one's steps, duration and frames.",
-                            no_args_is_help=True)
+protocols_app = typer.Typer(
+    help="The protocol library: list protocols, show one's steps, duration and frames.", no_args_is_help=True
+)
 app.add_typer(protocols_app, name="protocols")
+camera_app = typer.Typer(help="The tactile camera: check it before a run.", no_args_is_help=True)
+app.add_typer(camera_app, name="camera")
 
-ConfigOpt = Annotated[Optional[Path], typer.Option(
-    "--config", "-c", help="Rig config TOML (default: $RIG_CONFIG, then ./rig.toml).", dir_okay=False)]
+ConfigOpt = Annotated[
+    Optional[Path],
+    typer.Option("--config", "-c", help="Rig config TOML (default: $RIG_CONFIG, then ./rig.toml).", dir_okay=False),
+]
 SimOpt = Annotated[bool, typer.Option("--sim", help="Use the built-in simulated rig instead of hardware.")]
 
 
@@ -45,10 +53,10 @@ class Transport(str, enum.Enum):
     tcp = "tcp"
 
 
-class GaugeKind(str, enum.Enum):
-    ft300 = "ft300"
-    m8128 = "m8128"
-    ati_netft = "ati_netft"
+# The gauges the simulated rig can stand in: the registry rows with a simulator.
+GaugeKind = enum.Enum(  # type: ignore[misc]  # members come from the registry, so mypy cannot list them
+    "GaugeKind", [(name, name) for name in kinds("gauge", simulated=True)], type=str
+)
 
 
 def _fail(message: str, code: int = 1):
@@ -75,12 +83,13 @@ def friendly_errors(fn):
         except (FileNotFoundError, ValueError) as exc:
             _fail(str(exc))
         except MotionInterrupted as exc:
-            typer.secho(f"interrupted ({exc.signal_name}): motion stopped, devices closed", fg=typer.colors.YELLOW,
-                        err=True)
-            raise typer.Exit(exc.exit_code)
+            typer.secho(
+                f"interrupted ({exc.signal_name}): motion stopped, devices closed", fg=typer.colors.YELLOW, err=True
+            )
+            raise typer.Exit(exc.exit_code) from None
         except KeyboardInterrupt:
             typer.secho("interrupted: motion stopped, devices closed", fg=typer.colors.YELLOW, err=True)
-            raise typer.Exit(130)
+            raise typer.Exit(130) from None
         except Exception as exc:  # a driver's or the OS's error: still one line, naming its type
             logging.getLogger("rig").debug("unexpected error", exc_info=True)
             _fail(f"{type(exc).__name__}: {exc}")
@@ -96,11 +105,12 @@ def _say(text: str) -> None:
 @app.command()
 @friendly_errors
 def status(config: ConfigOpt = None, sim: SimOpt = False):
-    """Print every axis (position, state, homed, warnings) and the current wrench."""
-    from cli.views import print_status
+    """Print every axis (position, state, homed, warnings), the gauge and the current wrench, and the
+    camera when configured (resolution, fps, exposure and white balance locked, age of the newest frame)."""
     from cli.session import open_rig
+    from cli.views import print_status
 
-    with open_rig(config, sim) as rig:
+    with open_rig(config, sim, camera=None) as rig:
         print_status(rig)
 
 
@@ -108,16 +118,35 @@ def status(config: ConfigOpt = None, sim: SimOpt = False):
 @friendly_errors
 def jog(
     axis: Annotated[AxisName, typer.Option("--axis", "-a", help="Axis to move: x, y, z (mm) or theta (deg).")],
-    step: Annotated[Optional[float], typer.Option(help="Move by this much (mm, or deg for theta) and exit (default: interactive jogging).",
-                                                  callback=number(low=-TRAVEL_LIMIT, high=TRAVEL_LIMIT))] = None,
-    to: Annotated[Optional[float], typer.Option(help="Move to this absolute position (mm or deg) and exit (default: interactive jogging).",
-                                                callback=number(low=-TRAVEL_LIMIT, high=TRAVEL_LIMIT))] = None,
-    speed: Annotated[Optional[float], typer.Option(
-        help="Speed in mm/s (deg/s for theta); default: the axis's jog_speed from the config.",
-        callback=number(positive=True, high=MAX_SPEED))] = None,
-    key_step: Annotated[float, typer.Option(
-        help="Interactive mode: initial step per keypress (mm or deg); [ and ] divide/multiply it by 10.",
-        min=0.0001, callback=number(positive=True, high=TRAVEL_LIMIT))] = 0.1,
+    step: Annotated[
+        Optional[float],
+        typer.Option(
+            help="Move by this much (mm, or deg for theta) and exit (default: interactive jogging).",
+            callback=number(low=-TRAVEL_LIMIT, high=TRAVEL_LIMIT),
+        ),
+    ] = None,
+    to: Annotated[
+        Optional[float],
+        typer.Option(
+            help="Move to this absolute position (mm or deg) and exit (default: interactive jogging).",
+            callback=number(low=-TRAVEL_LIMIT, high=TRAVEL_LIMIT),
+        ),
+    ] = None,
+    speed: Annotated[
+        Optional[float],
+        typer.Option(
+            help="Speed in mm/s (deg/s for theta); default: the axis's jog_speed from the config.",
+            callback=number(positive=True, high=MAX_SPEED),
+        ),
+    ] = None,
+    key_step: Annotated[
+        float,
+        typer.Option(
+            help="Interactive mode: initial step per keypress (mm or deg); [ and ] divide/multiply it by 10.",
+            min=0.0001,
+            callback=number(positive=True, high=TRAVEL_LIMIT),
+        ),
+    ] = 0.1,
     pendant: Annotated[bool, typer.Option(help="Interactive mode: jog with the HID pendant (SpaceMouse).")] = False,
     config: ConfigOpt = None,
     sim: SimOpt = False,
@@ -146,8 +175,10 @@ def jog(
 @app.command()
 @friendly_errors
 def home(
-    axis: Annotated[Optional[list[AxisName]], typer.Option(
-        "--axis", "-a", help="Axis to home (repeatable); default all. z always goes first.")] = None,
+    axis: Annotated[
+        Optional[list[AxisName]],
+        typer.Option("--axis", "-a", help="Axis to home (repeatable); default all. z always goes first."),
+    ] = None,
     config: ConfigOpt = None,
     sim: SimOpt = False,
 ):
@@ -175,20 +206,40 @@ def zero(
 
     with open_rig(config, sim, axes=()) as rig:
         bias = rig.tare(samples)
-        typer.echo("bias removed: " + ", ".join(
-            f"{c} {v:+.4f} {u}" for c, v, u in zip(WRENCH_COMPONENTS, bias, WRENCH_UNITS)))
+        typer.echo(
+            "bias removed: " + ", ".join(f"{c} {v:+.4f} {u}" for c, v, u in zip(WRENCH_COMPONENTS, bias, WRENCH_UNITS))
+        )
         typer.echo("note: the tare lives in this process; later commands tare again (acquisition does at start)")
 
 
 @app.command("find-contact")
 @friendly_errors
 def find_contact_cmd(
-    threshold: Annotated[float, typer.Option("--threshold-n", help="|Fz| that counts as touching, N.", min=0.001,
-                                             callback=number(positive=True, high=MAX_FORCE_LIMIT_N))] = 0.05,
-    speed: Annotated[float, typer.Option(help="Descent speed of the first pass, mm/s (the second is 10x slower).",
-                                         min=0.001, callback=number(positive=True, high=MAX_SPEED))] = 0.5,
-    max_travel: Annotated[float, typer.Option(help="How far down to search from the present z, mm.", min=0.01,
-                                              callback=number(positive=True, high=TRAVEL_LIMIT))] = 10.0,
+    threshold: Annotated[
+        float,
+        typer.Option(
+            "--threshold-n",
+            help="|Fz| that counts as touching, N.",
+            min=0.001,
+            callback=number(positive=True, high=MAX_FORCE_LIMIT_N),
+        ),
+    ] = 0.05,
+    speed: Annotated[
+        float,
+        typer.Option(
+            help="Descent speed of the first pass, mm/s (the second is 10x slower).",
+            min=0.001,
+            callback=number(positive=True, high=MAX_SPEED),
+        ),
+    ] = 0.5,
+    max_travel: Annotated[
+        float,
+        typer.Option(
+            help="How far down to search from the present z, mm.",
+            min=0.01,
+            callback=number(positive=True, high=TRAVEL_LIMIT),
+        ),
+    ] = 10.0,
     config: ConfigOpt = None,
     sim: SimOpt = False,
 ):
@@ -198,17 +249,59 @@ def find_contact_cmd(
 
     with open_rig(config, sim, axes=("z",)) as rig:
         found = find_contact(rig, threshold_N=threshold, speed_mm_s=speed, max_travel_mm=max_travel, on_start=_say)
-    typer.echo(f"contact at z = {found.z_mm:.4f} mm (|Fz| = {abs(found.fz_N):.3f} N, resolution "
-               f"{found.resolution_mm * 1000:.1f} µm); z lifted clear")
+    typer.echo(
+        f"contact at z = {found.z_mm:.4f} mm (|Fz| = {abs(found.fz_N):.3f} N, resolution "
+        f"{found.resolution_mm * 1000:.1f} µm); z lifted clear"
+    )
     typer.echo(f"use: rig run-protocol NAME --origin X,Y,{found.z_mm:.4f},THETA")
+
+
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff")
+
+
+@camera_app.command("snapshot")
+@friendly_errors
+def camera_snapshot(
+    out: Annotated[
+        Path,
+        typer.Option(help=f"The image to write ({', '.join(IMAGE_SUFFIXES)}); replaced if it exists.", dir_okay=False),
+    ] = Path("frame.png"),
+    config: ConfigOpt = None,
+    sim: SimOpt = False,
+):
+    """Grab one frame from the camera and write it to --out; print its size and the camera's settings."""
+    import cv2
+    from rich.console import Console
+
+    from cli.session import open_rig
+    from cli.views import print_camera
+
+    if out.suffix.lower() not in IMAGE_SUFFIXES:
+        raise typer.BadParameter(
+            f"must end in one of {', '.join(IMAGE_SUFFIXES)}, got {str(out)!r}", param_hint="'--out'"
+        )
+    if not out.parent.is_dir():
+        _fail(f"--out: folder {out.parent} does not exist")
+    with open_rig(config, sim, axes=(), gauge=False, camera=True) as rig:
+        report = rig.camera.report()
+        rig.camera.trigger()
+        frame = rig.camera.read(timeout_s=2.0)
+        print_camera(rig.config.camera, report, Console(stderr=True))
+    if not cv2.imwrite(str(out), frame.image):
+        _fail(f"--out: cannot write {out}")
+    typer.echo(f"{out}: {frame.image.shape[1]}x{frame.image.shape[0]} frame")
 
 
 @sim_app.command("serve")
 @friendly_errors
 def sim_serve(
-    out: Annotated[Path, typer.Option(help="Where to write the rig config that points at the simulators.")] = Path("rig-sim.toml"),
-    transport: Annotated[Transport, typer.Option(help="pty (virtual serial ports) or tcp (socket:// on 127.0.0.1).")] = Transport.pty,
-    gauge: Annotated[GaugeKind, typer.Option(help="Which force gauge to simulate.")] = GaugeKind.ft300,
+    out: Annotated[Path, typer.Option(help="Where to write the rig config that points at the simulators.")] = Path(
+        "rig-sim.toml"
+    ),
+    transport: Annotated[
+        Transport, typer.Option(help="pty (virtual serial ports) or tcp (socket:// on 127.0.0.1).")
+    ] = Transport.pty,
+    gauge: Annotated[GaugeKind, typer.Option(help="Which force gauge to simulate.")] = GaugeKind("ft300"),
 ):
     """Start the simulated rig, print its port URLs, write a config; runs until Ctrl-C."""
     import faulthandler
@@ -217,14 +310,17 @@ def sim_serve(
 
     faulthandler.register(signal.SIGUSR1)  # `kill -USR1 PID` prints every thread's stack (a stuck simulator)
 
-    from rig.sim.rig_sim import SimulatedRig
+    from rig.sim.rig_sim import SERVED_DEVICE_TIMEOUT_S, SimulatedRig
 
     with SimulatedRig(transport=transport.value, gauge=gauge.value) as simulated:
-        out.write_text("# Written by `rig sim serve`; valid while that process runs.\n"
-                       "# The simulated camera lives in-process only: use --sim for frames.\n"
-                       + simulated.config_toml(with_camera=False))
+        camera = simulated.serve_camera()
+        out.write_text(
+            "# Written by `rig sim serve`; valid while that process runs.\n"
+            + simulated.config_toml(device_timeout_s=SERVED_DEVICE_TIMEOUT_S)
+        )
         for name, server in simulated.servers.items():
             typer.echo(f"{name:7s} {server.url}")
+        typer.echo(f"{'camera':7s} {camera.url}")
         typer.echo(f"config  {out}   (try: rig status --config {out})")
         typer.echo("serving; Ctrl-C stops")
         try:
@@ -242,16 +338,23 @@ def protocols_list():
     list_protocols()
 
 
-SetOpt = Annotated[Optional[list[str]], typer.Option(
-    "--set", help="Change one protocol key for this run, as section.key=value (repeatable), e.g. "
-                  "--set motion.speed_mm_s=0.1 (the paper's ~700 frames per object) or --set protocol.sensor=rgb_markers. "
-                  "The run file stores the changed protocol. Default: the protocol as written.")]
+SetOpt = Annotated[
+    Optional[list[str]],
+    typer.Option(
+        "--set",
+        help="Change one protocol key for this run, as section.key=value (repeatable), e.g. "
+        "--set motion.speed_mm_s=0.1 (the paper's ~700 frames per object) or --set protocol.sensor=rgb_markers. "
+        "The run file stores the changed protocol. Default: the protocol as written.",
+    ),
+]
 
 
 @protocols_app.command("show")
 @friendly_errors
-def protocols_show(name: Annotated[str, typer.Argument(help="A library protocol name, or a path to a .toml file.")],
-                   settings: SetOpt = None):
+def protocols_show(
+    name: Annotated[str, typer.Argument(help="A library protocol name, or a path to a .toml file.")],
+    settings: SetOpt = None,
+):
     """Print a protocol's steps, its true duration, frame count and disk estimate."""
     from cli.protocol_cmds import show_protocol
 
@@ -272,12 +375,23 @@ def _origin(value: str) -> tuple[float, float, float, float]:
 @friendly_errors
 def run_protocol_cmd(
     name: Annotated[str, typer.Argument(help="A library protocol (rig protocols list), or a path to a .toml file.")],
-    out: Annotated[Optional[Path], typer.Option(help="The HDF5 run file to write; must not exist "
-                                                    "(default: runs/NAME-YYYYmmdd-HHMMSS.h5).")] = None,
-    resume: Annotated[Optional[Path], typer.Option(help="Continue this interrupted run file where it stopped (default: a new run).")] = None,
-    dry_run: Annotated[bool, typer.Option("--dry-run", help="Check every move against the config's limits and print "
-                                                            "duration and frame count; move nothing.")] = False,
-    origin: Annotated[str, typer.Option(help="The contact point in axis coordinates: x,y,z (mm),theta (deg).")] = "0,0,0,0",
+    out: Annotated[
+        Optional[Path],
+        typer.Option(help="The HDF5 run file to write; must not exist (default: runs/NAME-YYYYmmdd-HHMMSS.h5)."),
+    ] = None,
+    resume: Annotated[
+        Optional[Path], typer.Option(help="Continue this interrupted run file where it stopped (default: a new run).")
+    ] = None,
+    dry_run: Annotated[
+        bool,
+        typer.Option(
+            "--dry-run",
+            help="Check every move against the config's limits and print duration and frame count; move nothing.",
+        ),
+    ] = False,
+    origin: Annotated[
+        str, typer.Option(help="The contact point in axis coordinates: x,y,z (mm),theta (deg).")
+    ] = "0,0,0,0",
     settings: SetOpt = None,
     config: ConfigOpt = None,
     sim: SimOpt = False,
@@ -288,8 +402,16 @@ def run_protocol_cmd(
     """
     from cli.protocol_cmds import run_protocol
 
-    run_protocol(name, out=out, resume=resume, dry_run=dry_run, config=config, sim=sim, origin=_origin(origin),
-                 settings=settings or [])
+    run_protocol(
+        name,
+        out=out,
+        resume=resume,
+        dry_run=dry_run,
+        config=config,
+        sim=sim,
+        origin=_origin(origin),
+        settings=settings or [],
+    )
 
 
 if __name__ == "__main__":

@@ -19,14 +19,24 @@ def resolve_config_path(config: Path | None) -> Path:
         return Path(env)
     if Path(DEFAULT_CONFIG).exists():
         return Path(DEFAULT_CONFIG)
-    raise ConfigError(DEFAULT_CONFIG, "-", "no rig config: pass --config FILE, set RIG_CONFIG, "
-                                           "or use --sim for the built-in simulated rig")
+    raise ConfigError(
+        DEFAULT_CONFIG,
+        "-",
+        "no rig config: pass --config FILE, set RIG_CONFIG, or use --sim for the built-in simulated rig",
+    )
 
 
 @contextlib.contextmanager
-def open_rig(config: Path | None, sim: bool, *, axes: tuple[str, ...] | None = None, gauge: bool = True,
-             camera: bool = False):
+def open_rig(
+    config: Path | None,
+    sim: bool,
+    *,
+    axes: tuple[str, ...] | None = None,
+    gauge: bool = True,
+    camera: bool | None = False,
+):
     """Yield an open ``Rig`` with only the devices asked for; closes everything on exit.
+    ``camera=None``: the camera when the config has a [camera] section.
 
     SIGTERM and SIGHUP (and SIGINT) raise MotionInterrupted for the whole command, not
     only while something moves, so that a signal while the rig opens or closes still
@@ -41,10 +51,16 @@ def open_rig(config: Path | None, sim: bool, *, axes: tuple[str, ...] | None = N
             from rig.sim.rig_sim import SimulatedRig
 
             with SimulatedRig() as simulated:
-                with Rig.open(simulated.config(), simulated.clock, axes=axes, gauge=gauge, camera=camera,
-                              sim=simulated) as rig:
+                cfg = simulated.config()
+                with Rig.open(
+                    cfg, simulated.clock, axes=axes, gauge=gauge, camera=_camera(cfg, camera), sim=simulated
+                ) as rig:
                     yield rig
         else:
             cfg = load_config(resolve_config_path(config))
-            with Rig.open(cfg, axes=axes, gauge=gauge, camera=camera) as rig:
+            with Rig.open(cfg, axes=axes, gauge=gauge, camera=_camera(cfg, camera)) as rig:
                 yield rig
+
+
+def _camera(cfg, camera: bool | None) -> bool:
+    return cfg.camera is not None if camera is None else camera

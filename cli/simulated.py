@@ -15,6 +15,7 @@ from rig.clock import ManualClock
 from rig.config import SafetyConfig
 from rig.rig import Rig
 from rig.sim.rig_sim import SimulatedRig
+from sensor_sim.world_contact import ElastomerContact
 
 GAUGE_RATE_HZ = 10.0  # simulated time; the run samples the wrench at the capture rate
 
@@ -23,15 +24,20 @@ GAUGE_RATE_HZ = 10.0  # simulated time; the run samples the wrench at the captur
 def simulated_rig_for(protocol, *, safety: SafetyConfig | None = None, transport: str = "pty"):
     """Yield (rig, simulated rig, run-file header) for ``protocol`` on the simulated rig."""
     clock = ManualClock()
-    with SimulatedRig(clock, indenter=protocol.object, sensor_kind=protocol.sensor, gauge_rate_hz=GAUGE_RATE_HZ,
-                      transport=transport) as simulated:
+    with SimulatedRig(
+        clock, indenter=protocol.object, sensor_kind=protocol.sensor, gauge_rate_hz=GAUGE_RATE_HZ, transport=transport
+    ) as simulated:
         simulated.triggered_camera = True
         cfg = simulated.config()
         if safety is not None:
             cfg = dataclasses.replace(cfg, safety=safety)
-        geometry = simulated.world.contact.solver.geometry
-        header = {"rig_config": RIG_CONFIG_MARK + "\n" + simulated.config_toml(),
-                  "mm_per_px": geometry.width_mm / cfg.camera.width}
+        contact = simulated.world.contact
+        assert isinstance(contact, ElastomerContact) and cfg.camera is not None  # the simulated rig's gel and camera
+        geometry = contact.solver.geometry
+        header = {
+            "rig_config": RIG_CONFIG_MARK + "\n" + simulated.config_toml(),
+            "mm_per_px": geometry.width_mm / cfg.camera.width,
+        }
         with Rig.open(cfg, clock, camera=True, sim=simulated) as rig:
             yield rig, simulated, header
 

@@ -23,8 +23,9 @@ def _bounds_text(low, high, positive: bool) -> str:
     return f">= {low!r}" if low is not None else f"<= {high!r}"
 
 
-def number_problem(value: Any, *, low: float | None = None, high: float | None = None, positive: bool = False,
-                   integer: bool = False) -> str | None:
+def number_problem(
+    value: Any, *, low: float | None = None, high: float | None = None, positive: bool = False, integer: bool = False
+) -> str | None:
     """What is wrong with ``value`` as a finite number within the bounds ("must be > 0, got
     -1.0"), or None when nothing is. NaN compares false with every bound, so a plain
     ``low <= value <= high`` would let it through; inf and huge ints overflow later arithmetic."""
@@ -42,14 +43,22 @@ def number_problem(value: Any, *, low: float | None = None, high: float | None =
     return None
 
 
-def finite_number(path: str, key: str, value: Any, *, low: float | None = None, high: float | None = None,
-                  positive: bool = False, integer: bool = False) -> float | int:
+def finite_number(
+    path: str,
+    key: str,
+    value: Any,
+    *,
+    low: float | None = None,
+    high: float | None = None,
+    positive: bool = False,
+    integer: bool = False,
+) -> float | int:
     """``value`` as a float (an int when ``integer``) if it is a finite number within the
     bounds; else a one-line ConfigError naming ``path``, ``key`` and the value.
 
     The one checker for numbers entering the project: rig config, protocols and ``--set``,
     import metadata, split ratios, numeric command-line options (the command-line layer's ``number`` callback).
-        """
+    """
     problem = number_problem(value, low=low, high=high, positive=positive, integer=integer)
     if problem:
         raise ConfigError(path, key, problem)
@@ -71,29 +80,33 @@ class Table:
     def error(self, name: str, message: str) -> ConfigError:
         return ConfigError(self.path, self.key(name), message)
 
-    def get(self, name: str, kind: type, default: Any = ..., *, choices=None, low=None, high=None,
-            positive: bool = False):
+    def get(
+        self, name: str, kind: type, default: Any = ..., *, choices=None, low=None, high=None, positive: bool = False
+    ):
         """The value of ``name``; numbers (int, float) go through :func:`finite_number`."""
         self.used.add(name)
         if name not in self.data:
             if default is ...:
-                raise self.error(name, "is required" + (f" (one of {', '.join(map(repr, choices))})" if choices else ""))
+                one_of = f" (one of {', '.join(map(repr, choices))})" if choices else ""
+                raise self.error(name, "is required" + one_of)
             return default
         value = self.data[name]
         if kind in (int, float):
             is_number = isinstance(value, (int, float)) and not isinstance(value, bool)
             if not is_number or (kind is int and not isinstance(value, int)):
                 raise self.error(name, f"must be {kind.__name__}, got {value!r}")
-            return finite_number(self.path, self.key(name), value, low=low, high=high, positive=positive,
-                                 integer=kind is int)
+            return finite_number(
+                self.path, self.key(name), value, low=low, high=high, positive=positive, integer=kind is int
+            )
         if not isinstance(value, kind):
             raise self.error(name, f"must be {kind.__name__}, got {value!r}")
         if choices is not None and value not in choices:
             raise self.error(name, f"must be one of {', '.join(map(repr, choices))}, got {value!r}")
         return value
 
-    def vector(self, name: str, n: int, default: Any = ..., *, low=None, high=None,
-               positive: bool = False) -> tuple[float, ...]:
+    def vector(
+        self, name: str, n: int, default: Any = ..., *, low=None, high=None, positive: bool = False
+    ) -> tuple[float, ...]:
         """A list of ``n`` numbers, each checked like :meth:`get` (key ``name[i]``)."""
         self.used.add(name)
         if name not in self.data:
@@ -101,11 +114,16 @@ class Table:
                 raise self.error(name, f"is required (a list of {n} numbers)")
             return default
         value = self.data[name]
-        if not isinstance(value, list) or len(value) != n or not all(
-                isinstance(v, (int, float)) and not isinstance(v, bool) for v in value):
+        if (
+            not isinstance(value, list)
+            or len(value) != n
+            or not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value)
+        ):
             raise self.error(name, f"must be a list of {n} numbers, got {value!r}")
-        return tuple(finite_number(self.path, f"{self.key(name)}[{i}]", v, low=low, high=high, positive=positive)
-                     for i, v in enumerate(value))
+        return tuple(
+            finite_number(self.path, f"{self.key(name)}[{i}]", v, low=low, high=high, positive=positive)
+            for i, v in enumerate(value)
+        )
 
     def done(self) -> None:
         unknown = sorted(set(self.data) - self.used)

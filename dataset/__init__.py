@@ -1,1 +1,1 @@
-"""HDF5 runs to validated, merged and split training data (issue 5: not yet built)."""
+"""HDF5 runs to validated, merged and split training data, and the PyTorch Dataset (docs/dataset.md)."""

@@ -6,8 +6,9 @@ import cv2
 import numpy as np
 
 
-def place_object(object_image: np.ndarray, x_mm: float, y_mm: float, theta_deg: float, mm_per_px: float,
-                 size: int | None = None) -> np.ndarray:
+def place_object(
+    object_image: np.ndarray, x_mm: float, y_mm: float, theta_deg: float, mm_per_px: float, size: int | None = None
+) -> np.ndarray:
     """The object image translated by (x, y) mm and rotated by θ about its axis.
 
     The image is the contact face centred at pose (0, 0, 0°); +x is right, +y up
@@ -24,8 +25,9 @@ def place_object(object_image: np.ndarray, x_mm: float, y_mm: float, theta_deg: 
     return placed
 
 
-def condition_image(object_image: np.ndarray, x_mm: float, y_mm: float, theta_deg: float, mm_per_px: float,
-                    frame_px: int, size: int) -> np.ndarray:
+def condition_image(
+    object_image: np.ndarray, x_mm: float, y_mm: float, theta_deg: float, mm_per_px: float, frame_px: int, size: int
+) -> np.ndarray:
     """The condition image of the model: the object at the pose, (size, size, 3) uint8.
 
     ``object_image`` spans the sensor's field of view, ``frame_px`` × ``mm_per_px`` mm
@@ -34,11 +36,16 @@ def condition_image(object_image: np.ndarray, x_mm: float, y_mm: float, theta_de
     size) and generation (an object image of any size) place the object identically.
     """
     if object_image.shape[0] != object_image.shape[1]:
-        raise ValueError(f"object image is {object_image.shape[1]}x{object_image.shape[0]} px; expected a square image "
-                         "of the sensor's field of view")
+        raise ValueError(
+            f"object image is {object_image.shape[1]}x{object_image.shape[0]} px; expected a square image "
+            "of the sensor's field of view"
+        )
     if object_image.shape[0] != frame_px:
-        object_image = cv2.resize(object_image, (frame_px, frame_px), interpolation=cv2.INTER_AREA
-                                  if object_image.shape[0] > frame_px else cv2.INTER_LINEAR)
+        object_image = cv2.resize(
+            object_image,
+            (frame_px, frame_px),
+            interpolation=cv2.INTER_AREA if object_image.shape[0] > frame_px else cv2.INTER_LINEAR,
+        )
     return place_object(object_image, x_mm, y_mm, theta_deg, mm_per_px, size=size)
 
 

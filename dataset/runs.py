@@ -40,8 +40,10 @@ def read(f: h5py.File, name: str, sel=()) -> np.ndarray:
     try:
         return f[name][sel]
     except (OSError, RuntimeError) as exc:
-        raise RunFileError(f"{f.filename}: {name}: unreadable ({str(exc).strip().splitlines()[0]}); "
-                           "the file is damaged (dataset validate lists what)") from None
+        raise RunFileError(
+            f"{f.filename}: {name}: unreadable ({str(exc).strip().splitlines()[0]}); "
+            "the file is damaged (dataset validate lists what)"
+        ) from None
 
 
 @dataclass(frozen=True)
@@ -70,12 +72,18 @@ def summarize(path: str | Path) -> RunSummary:
         t = read(f, S.T_FRAME, slice(0, n))
         a = f.attrs
         return RunSummary(
-            path=str(path), frames=n, frames_planned=int(a.get(S.ATTR_FRAMES_PLANNED, n)),
-            status=read(f, S.STATUS).decode(errors="replace"), reason=read(f, S.STATUS_REASON).decode(errors="replace"),
-            object_name=str(a.get(S.ATTR_OBJECT, "?")), sensor_kind=str(a.get(S.ATTR_SENSOR_KIND, "?")),
-            protocol=str(a.get(S.ATTR_PROTOCOL_NAME, "?")), frame_shape=tuple(f[S.FRAMES].shape[1:]),
+            path=str(path),
+            frames=n,
+            frames_planned=int(a.get(S.ATTR_FRAMES_PLANNED, n)),
+            status=read(f, S.STATUS).item().decode(errors="replace"),
+            reason=read(f, S.STATUS_REASON).item().decode(errors="replace"),
+            object_name=str(a.get(S.ATTR_OBJECT, "?")),
+            sensor_kind=str(a.get(S.ATTR_SENSOR_KIND, "?")),
+            protocol=str(a.get(S.ATTR_PROTOCOL_NAME, "?")),
+            frame_shape=tuple(f[S.FRAMES].shape[1:]),
             duration_s=float(t[-1] - t[0]) if n > 1 else 0.0,
-            wrench_min=w.min(axis=0) if n else np.full(6, np.nan), wrench_max=w.max(axis=0) if n else np.full(6, np.nan),
+            wrench_min=w.min(axis=0) if n else np.full(6, np.nan),
+            wrench_max=w.max(axis=0) if n else np.full(6, np.nan),
             mm_per_px=float(a.get(S.ATTR_MM_PER_PX, np.nan)),
         )
 
@@ -117,7 +125,7 @@ def _check_open_run(f: h5py.File, out: Check, max_skew_s: float, sample_frames: 
     problems = field_problems(f)
     out.findings += [f"{name}: {p}" for name, p in problems.items()]
     out.findings += [f"attribute {name}: {p}" for name, p in attr_problems(f).items()]
-    sound = {fl.path for fl in S.FIELDS if fl.path not in problems}
+    sound = {fl.path for fl in S.FIELDS if fl.path not in problems and fl.path in f}  # optional ones may be absent
     _check_checksums(f, sound, out)
     _check_status(f, sound, out)
     n = f[S.FRAMES].shape[0] if S.FRAMES in sound else 0
@@ -136,6 +144,9 @@ def _check_open_run(f: h5py.File, out: Check, max_skew_s: float, sample_frames: 
             except (OSError, RuntimeError) as exc:
                 out.findings.append(f"{fl.path}: unreadable, checksum mismatch or missing bytes ({_line(exc)})")
     _check_rows(f, rows, n, max_skew_s, out)
+    for fl in S.STREAM_FIELDS:
+        if fl.path in sound:
+            _check_stream(f, fl.path, out)
     if S.FRAMES in sound:
         _check_frames(f[S.FRAMES], n, sample_frames, out)
     for name in (S.OBJECT_IMAGE, S.REFERENCE_FRAME):
@@ -151,7 +162,9 @@ def _line(exc: BaseException) -> str:
 
 
 def _check_checksums(f: h5py.File, sound: set[str], out: Check) -> None:
-    unprotected = [fl.path for fl in (S.FRAMES_FIELD, *S.PER_FRAME_FIELDS) if fl.path in sound and not f[fl.path].fletcher32]
+    unprotected = [
+        fl.path for fl in (S.FRAMES_FIELD, *S.PER_FRAME_FIELDS) if fl.path in sound and not f[fl.path].fletcher32
+    ]
     if unprotected and len(unprotected) == 1 + len(S.PER_FRAME_FIELDS):
         out.notes.append("no checksums (old file): corruption inside a frame or row cannot be detected")
     elif unprotected:
@@ -193,15 +206,35 @@ def _check_rows(f: h5py.File, rows: dict[str, np.ndarray], n: int, max_skew_s: f
         phases = len(np.atleast_1d(f.attrs[S.ATTR_PHASES]))
         bad = (rows[S.PHASE_INDEX] < 0) | (rows[S.PHASE_INDEX] >= phases)
         if bad.any():
-            out.findings.append(f"{S.PHASE_INDEX}: {int(bad.sum())} rows outside the {phases} phases "
-                                f"(first at frame {int(np.argmax(bad))})")
+            out.findings.append(
+                f"{S.PHASE_INDEX}: {int(bad.sum())} rows outside the {phases} phases "
+                f"(first at frame {int(np.argmax(bad))})"
+            )
     if S.LEVEL in rows and np.any(rows[S.LEVEL] < 0):
         out.findings.append(f"{S.LEVEL}: negative at frame {int(np.argmax(rows[S.LEVEL] < 0))}")
     if S.WRENCH_SKEW in rows:
         skew = rows[S.WRENCH_SKEW]
         if np.any(skew > max_skew_s):
-            out.findings.append(f"{S.WRENCH_SKEW}: {int((skew > max_skew_s).sum())} frames beyond {max_skew_s} s "
-                                f"(max {np.nanmax(skew):.3f} s)")
+            out.findings.append(
+                f"{S.WRENCH_SKEW}: {int((skew > max_skew_s).sum())} frames beyond {max_skew_s} s "
+                f"(max {np.nanmax(skew):.3f} s)"
+            )
+
+
+def _check_stream(f: h5py.File, name: str, out: Check) -> None:
+    """A full-rate stream: every chunk readable, values finite, time never going back (samples
+    that arrived in one read share its time stamp)."""
+    try:
+        rows = f[name][()]
+    except (OSError, RuntimeError) as exc:
+        out.findings.append(f"{name}: unreadable, checksum mismatch or missing bytes ({_line(exc)})")
+        return
+    bad = ~np.isfinite(rows).all(axis=1)
+    if bad.any():
+        out.findings.append(f"{name}: NaN/inf in {int(bad.sum())} rows (first at row {int(np.argmax(bad))})")
+    back = np.diff(rows[:, 0]) < 0
+    if back.any():
+        out.findings.append(f"{name}: time goes back at row {int(np.argmax(back)) + 1}")
 
 
 def _check_frames(frames: h5py.Dataset, n: int, sample_frames: int | None, out: Check) -> None:
@@ -212,9 +245,9 @@ def _check_frames(frames: h5py.Dataset, n: int, sample_frames: int | None, out: 
         wanted = np.unique(np.linspace(0, n - 1, min(n, sample_frames)).astype(int))
     seen: dict[str, list[int]] = {"unreadable": [], "all black": [], "constant": [], "saturated": []}
     for start in range(0, len(wanted), FRAME_BATCH):
-        batch = wanted[start: start + FRAME_BATCH]
+        batch = wanted[start : start + FRAME_BATCH]
         try:  # contiguous batches in one read; a failure is located frame by frame
-            imgs = frames[batch[0]: batch[-1] + 1] if sample_frames is None else None
+            imgs = frames[batch[0] : batch[-1] + 1] if sample_frames is None else None
         except (OSError, RuntimeError):
             imgs = None
         for j, i in enumerate(batch):

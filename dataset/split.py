@@ -9,16 +9,16 @@ from __future__ import annotations
 
 import hashlib
 import json
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from acquisition import schema as S
-from dataset.runs import open_run, summarize
+from common.errors import ConfigError, ToolError
 from common.table import finite_number
-from common.errors import ConfigError
-from common.errors import ToolError
+from dataset.runs import open_run, summarize
 
 MANIFEST = "split.json"
 PART_NAMES = {2: ("train", "test"), 3: ("train", "val", "test")}
@@ -33,15 +33,18 @@ def parse_ratios(text: str) -> tuple[float, ...]:
     (a zero part is an empty split); SplitError names the ratio and the part."""
     pieces = text.split(":")
     if len(pieces) not in PART_NAMES:
-        raise SplitError(f"split ratio {text!r}: expected two or three parts (train:test or train:val:test) "
-                         "such as 8:2 or 7:1:2")
+        raise SplitError(
+            f"split ratio {text!r}: expected two or three parts (train:test or train:val:test) such as 8:2 or 7:1:2"
+        )
     parts = []
     for name, piece in zip(PART_NAMES[len(pieces)], pieces):
         try:
             value = float(piece)
         except ValueError:
-            raise SplitError(f"split ratio {text!r}: the {name} part {piece!r} is not a number; expected numbers "
-                             "joined by ':' such as 8:2 or 7:1:2") from None
+            raise SplitError(
+                f"split ratio {text!r}: the {name} part {piece!r} is not a number; expected numbers "
+                "joined by ':' such as 8:2 or 7:1:2"
+            ) from None
         try:
             parts.append(finite_number(f"split ratio {text!r}", name, value, positive=True))
         except ConfigError as exc:
@@ -55,8 +58,10 @@ def parse_ratios(text: str) -> tuple[float, ...]:
 def _allocate(n: int, ratios: tuple[float, ...], what: str = "frame") -> list[int]:
     """Sizes summing to n, closest to the ratios (largest remainders), every part at least 1."""
     if n < len(ratios):
-        raise SplitError(f"{n} {what}(s) cannot fill {len(ratios)} parts (each needs at least one {what}); "
-                         + ("collect more frames" if what == "frame" else "add runs or split by frame"))
+        raise SplitError(
+            f"{n} {what}(s) cannot fill {len(ratios)} parts (each needs at least one {what}); "
+            + ("collect more frames" if what == "frame" else "add runs or split by frame")
+        )
     exact = [r * n for r in ratios]
     sizes = [int(x) for x in exact]
     for i in sorted(range(len(ratios)), key=lambda i: exact[i] - sizes[i], reverse=True)[: n - sum(sizes)]:
@@ -76,8 +81,16 @@ class Split:
     wrench_std: np.ndarray
 
 
-def make_split(paths: list[str | Path], ratios_text: str, out: str | Path, *, seed: int = 0, by: str = "frame",
-               allow_incomplete: bool = False, warn=print) -> Split:
+def make_split(
+    paths: Sequence[str | Path],
+    ratios_text: str,
+    out: str | Path,
+    *,
+    seed: int = 0,
+    by: str = "frame",
+    allow_incomplete: bool = False,
+    warn=print,
+) -> Split:
     if by not in ("frame", "run", "object"):
         raise SplitError(f"--by must be frame, run or object, got {by!r}")
     ratios = parse_ratios(ratios_text)
@@ -89,12 +102,16 @@ def make_split(paths: list[str | Path], ratios_text: str, out: str | Path, *, se
         raise SplitError(f"frame sizes differ across runs ({detail}); resize them to one size first")
     for s in summaries:
         if s.status != "complete":
-            message = f"{s.path}: run is {s.status} ({s.reason or 'no reason recorded'}), {s.frames}/{s.frames_planned} frames"
+            message = (
+                f"{s.path}: run is {s.status} ({s.reason or 'no reason recorded'}), "
+                f"{s.frames}/{s.frames_planned} frames"
+            )
             if not allow_incomplete:
                 raise SplitError(message + "; pass --allow-incomplete to use its frames anyway")
             warn(f"warning: {message}; using its frames (--allow-incomplete)")
-    rows = np.concatenate([np.stack([np.full(s.frames, i), np.arange(s.frames)], axis=1)
-                           for i, s in enumerate(summaries)]).astype(np.int32)
+    rows = np.concatenate(
+        [np.stack([np.full(s.frames, i), np.arange(s.frames)], axis=1) for i, s in enumerate(summaries)]
+    ).astype(np.int32)
     rng = np.random.default_rng(seed)
     if by == "frame":
         sizes = _allocate(len(rows), ratios)
@@ -106,16 +123,18 @@ def make_split(paths: list[str | Path], ratios_text: str, out: str | Path, *, se
         keys = [s.path if by == "run" else s.object_name for s in summaries]
         groups = sorted(set(keys))
         sizes = _allocate(len(groups), ratios, what=by)
-        order = [groups[i] for i in rng.permutation(len(groups))]
+        shuffled = [groups[i] for i in rng.permutation(len(groups))]
         assignment, start = {}, 0
         for name, size in zip(names, sizes):
-            for g in order[start:start + size]:
+            for g in shuffled[start : start + size]:
                 assignment[g] = name
             start += size
         run_part = np.array([names.index(assignment[k]) for k in keys])
         parts = {name: rows[run_part[rows[:, 0]] == j] for j, name in enumerate(names)}
     train = parts["train"]
-    wrench = np.concatenate([_wrenches(summaries[i].path, train[train[:, 0] == i][:, 1]) for i in range(len(summaries))])
+    wrench = np.concatenate(
+        [_wrenches(summaries[i].path, train[train[:, 0] == i][:, 1]) for i in range(len(summaries))]
+    )
     mean = wrench.mean(axis=0) if len(wrench) else np.zeros(6)
     std = wrench.std(axis=0) if len(wrench) else np.ones(6)
     std = np.where(std > 1e-9, std, 1.0)
@@ -124,12 +143,25 @@ def make_split(paths: list[str | Path], ratios_text: str, out: str | Path, *, se
     for name, part in parts.items():
         np.save(out / f"{name}.npy", part)
     manifest = {
-        "ratios": ratios_text, "by": by, "seed": seed,
-        "runs": [{"path": str(Path(s.path).resolve()), "frames": s.frames, "object": s.object_name,
-                  "sensor": s.sensor_kind, "status": s.status, "mm_per_px": s.mm_per_px,
-                  "frame_shape": list(s.frame_shape), "fingerprint": _fingerprint(s.path)} for s in summaries],
+        "ratios": ratios_text,
+        "by": by,
+        "seed": seed,
+        "runs": [
+            {
+                "path": str(Path(s.path).resolve()),
+                "frames": s.frames,
+                "object": s.object_name,
+                "sensor": s.sensor_kind,
+                "status": s.status,
+                "mm_per_px": s.mm_per_px,
+                "frame_shape": list(s.frame_shape),
+                "fingerprint": _fingerprint(s.path),
+            }
+            for s in summaries
+        ],
         "parts": {name: int(len(part)) for name, part in parts.items()},
-        "wrench_mean": mean.tolist(), "wrench_std": std.tolist(),
+        "wrench_mean": mean.tolist(),
+        "wrench_std": std.tolist(),
         "wrench_stats_from": "train",
     }
     (out / MANIFEST).write_text(json.dumps(manifest, indent=2) + "\n")

@@ -2,7 +2,9 @@
 
 Imports torch: used by training only, never by the other `dataset` commands. HDF5
 files are opened lazily in each worker process (h5py handles do not survive fork),
-read with SWMR, and kept open for the worker's life.
+read with SWMR, and kept open for the worker's life. Besides the model's inputs, an
+item carries any per-frame fields of the run-file table asked for (``fields=``), so a
+field added to the table reaches training without touching this module.
 """
 
 from __future__ import annotations
@@ -17,6 +19,7 @@ import torch
 from torch.utils.data import Dataset
 
 from acquisition import schema as S
+from acquisition.hdf5_open import open_swmr_read
 from dataset.condition import condition_image, normalise_wrench
 from dataset.split import load_split
 
@@ -61,12 +64,21 @@ def to_model_inputs(batch: dict, device=None) -> dict:
 class TactileDataset(Dataset):
     """Items: dict(condition (3, s, s) uint8, wrench (6,) float32 normalised with the training
     part's statistics, tactile (3, s, s) uint8, pose (4,), run, frame). Images are RGB;
-    ``to_model_inputs`` scales them to [−1, 1]."""
+    ``to_model_inputs`` scales them to [−1, 1]. ``fields``: per-frame fields of the run-file
+    table (acquisition/schema.py) added to each item under their names, as tensors; a run
+    written before an optional field existed serves its fill value."""
 
-    def __init__(self, split_dir: str | Path, part: str = "train", size: int = 256):
+    def __init__(self, split_dir: str | Path, part: str = "train", size: int = 256, fields: tuple[str, ...] = ()):
         self.manifest, parts = load_split(split_dir)
         if part not in parts:
             raise KeyError(f"{split_dir}: no part {part!r}; it has {', '.join(parts)}")
+        table = {f.path: f for f in S.PER_FRAME_FIELDS}
+        unknown = [name for name in fields if name not in table]
+        if unknown:
+            raise KeyError(
+                f"fields {', '.join(unknown)}: not per-frame fields of the run-file table ({', '.join(table)})"
+            )
+        self.fields = tuple(table[name] for name in fields)
         self.rows = parts[part]
         self.size = size
         self.runs = [r["path"] for r in self.manifest["runs"]]
@@ -75,7 +87,7 @@ class TactileDataset(Dataset):
         self.std = np.asarray(self.manifest["wrench_std"])
         self._files: dict[int, h5py.File] = {}
         self._objects: dict[int, np.ndarray] = {}
-        self._pid = None
+        self._pid: int | None = None
 
     def __len__(self) -> int:
         return len(self.rows)
@@ -84,7 +96,7 @@ class TactileDataset(Dataset):
         if self._pid != os.getpid():  # a fresh worker: handles from the parent are not ours
             self._files, self._objects, self._pid = {}, {}, os.getpid()
         if run not in self._files:
-            f = h5py.File(self.runs[run], "r", swmr=True)
+            f = open_swmr_read(Path(self.runs[run]))  # bounded retries: a damaged file fails, never hangs
             self._files[run] = f
             self._objects[run] = f[S.OBJECT_IMAGE][()]
         return self._files[run]
@@ -102,7 +114,13 @@ class TactileDataset(Dataset):
         pose = f[S.POSE_MEASURED][frame]
         obj = self._objects[run]
         condition = condition_image(obj, pose[0], pose[1], pose[3], self.mm_per_px[run], tactile.shape[1], self.size)
-        return {
+        extra = {
+            fl.path: torch.from_numpy(
+                np.asarray(f[fl.path][frame] if fl.path in f else np.full(fl.shape, fl.fill), dtype=fl.dtype)
+            )
+            for fl in self.fields
+        }
+        return extra | {
             "condition": image_to_tensor(condition),
             "wrench": torch.from_numpy(normalise_wrench(wrench, self.mean, self.std).astype(np.float32)),
             "tactile": self._to_tensor(tactile),

@@ -1,8 +1,9 @@
-"""Contact-condition-guided diffusion model.
+"""Contact-condition-guided diffusion model: object image at the contact pose + wrench → tactile image.
 
-Built: the configuration and presets (config.py), the denoiser (network.py), the
-diffusion loss and samplers (diffusion.py), the evaluation metrics (metrics.py,
-markers.py), the trainer with exact resume and safetensors checkpoints (trainer.py)
-and the `train` command. Not yet: validation samples, accelerate, `generate`,
-`evaluate` and its report.
+config.py (ModelConfig, presets) · registry.py (which network) → network.py (the U-Net) ·
+diffusion.py (schedule, loss, guided denoiser) → samplers.py (DDIM, DDPM, DPM-Solver++) ·
+trainer.py (the loop) + callbacks.py (progress, validation images, checkpoints), joined by
+build.py · checkpoint.py (safetensors + JSON) · inference.py (``generate``) · evaluate.py,
+metrics.py, markers.py, baseline.py, figures.py (``evaluate`` and its report). The commands
+``train``, ``generate`` and ``evaluate`` are in cli/model_app.py.
 """

@@ -29,10 +29,10 @@ class BaselineUnavailable(ValueError):
 
 class PhysicsRender:
     def __init__(self, run_path: str, *, noise_std: float = 0.0):
-        from sensor_sim.world_contact import rig_contact
         from objects.indenters import INDENTERS
         from sensor_sim.light import OpticsSpec
         from sensor_sim.optics import Renderer
+        from sensor_sim.world_contact import rig_contact
 
         with h5py.File(run_path, "r", swmr=True) as f:
             attrs = dict(f.attrs)
@@ -41,8 +41,9 @@ class PhysicsRender:
             h, w = f[S.FRAMES].shape[1:3]
             reference = f[S.REFERENCE_FRAME][()]
         if obj not in INDENTERS:
-            raise BaselineUnavailable(f"{run_path}: object {obj!r} is not one the simulator knows "
-                                      f"({', '.join(INDENTERS)}): no physics render")
+            raise BaselineUnavailable(
+                f"{run_path}: object {obj!r} is not one the simulator knows ({', '.join(INDENTERS)}): no physics render"
+            )
         if h != w:
             raise BaselineUnavailable(f"{run_path}: frames are {w}x{h}; the simulator renders a square pad")
         self.contact = rig_contact(obj)
@@ -60,7 +61,9 @@ class PhysicsRender:
         return self.renderer.render(result.fields)
 
 
-def render_frames(run_paths: list[str], rows: np.ndarray, poses: np.ndarray, size: int) -> tuple[list[np.ndarray], float]:
+def render_frames(
+    run_paths: list[str], rows: np.ndarray, poses: np.ndarray, size: int
+) -> tuple[list[np.ndarray], float]:
     """Physics renders of (run, frame) ``rows`` at their poses, resized to ``size`` as the
     dataset resizes real frames; and the seconds per frame it took."""
     renderers: dict[int, PhysicsRender] = {}

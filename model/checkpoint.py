@@ -13,6 +13,7 @@ import json
 import math
 import os
 from pathlib import Path
+from typing import Any
 
 import torch
 from safetensors import SafetensorError
@@ -84,10 +85,13 @@ def model_config(meta: dict, path: Path) -> ModelConfig:
     known = {f.name for f in dataclasses.fields(ModelConfig)}
     unknown = sorted(set(raw) - known)
     if unknown:
-        raise CheckpointError(f"{path}: [model] unknown key(s) {', '.join(map(repr, unknown))}: written by another "
-                              f"version of this software? (known: {', '.join(sorted(known))})")
+        raise CheckpointError(
+            f"{path}: [model] unknown key(s) {', '.join(map(repr, unknown))}: written by another "
+            f"version of this software? (known: {', '.join(sorted(known))})"
+        )
     try:
-        return ModelConfig(**{k: tuple(v) if isinstance(v, list) else v for k, v in raw.items()})
+        fields: dict[str, Any] = {k: tuple(v) if isinstance(v, list) else v for k, v in raw.items()}
+        return ModelConfig(**fields)
     except (TypeError, ValueError) as exc:
         raise CheckpointError(f"{path}: [model] {_first_line(exc)}") from None
 
@@ -96,8 +100,10 @@ def conditioning(meta: dict, path: Path) -> tuple[list[float], list[float], floa
     """(wrench mean, wrench std, mm per px, frame px) that inference conditions with, checked."""
     missing = [k for k in CONDITIONING_KEYS if k not in meta]
     if missing:
-        raise CheckpointError(f"{path}: has no conditioning statistics ({', '.join(missing)}): it predates them; "
-                              "train on (with --resume) to write a complete checkpoint")
+        raise CheckpointError(
+            f"{path}: has no conditioning statistics ({', '.join(missing)}): it predates them; "
+            "train on (with --resume) to write a complete checkpoint"
+        )
     mean, std, mm_per_px, frame_px = meta["wrench_mean"], meta["wrench_std"], meta["mm_per_px"], meta["frame_px"]
     for key, vec in (("wrench_mean", mean), ("wrench_std", std)):
         if not (isinstance(vec, list) and len(vec) == 6 and all(_finite(v) for v in vec)):
@@ -109,6 +115,47 @@ def conditioning(meta: dict, path: Path) -> tuple[list[float], list[float], floa
     if not (isinstance(frame_px, int) and not isinstance(frame_px, bool) and 8 <= frame_px <= 8192):
         raise CheckpointError(f"{path}: [frame_px] expected a whole number of pixels in [8, 8192], got {frame_px!r}")
     return mean, std, float(mm_per_px), frame_px
+
+
+def write_training_state(ck: Path, state: dict, meta: dict) -> None:
+    """A trainer's ``state()`` (weights, EMA, optimizer, noise generator, step, losses) and ``meta``
+    (configs, conditioning statistics) as the files above; state.json last, so a folder with one
+    is a complete checkpoint."""
+    ck.mkdir(parents=True, exist_ok=True)
+    write_tensors(ck, MODEL, state["model"])
+    write_tensors(ck, EMA, state["ema"])
+    opt = state["optimizer"]
+    tensors = {
+        f"{pid}.{key}": v for pid, st in opt["state"].items() for key, v in st.items() if isinstance(v, torch.Tensor)
+    }
+    tensors["noise_generator_state"] = state["noise"]
+    write_tensors(ck, OPTIMIZER, tensors)
+    write_state(ck, {**meta, "step": state["step"], "param_groups": opt["param_groups"], "losses": state["losses"]})
+
+
+def read_training_state(ck: Path, meta: dict) -> dict:
+    """What ``write_training_state`` wrote, in the trainer's ``state()`` form, on the CPU (the
+    trainer's load puts each tensor where its parameter is). ``meta``: ``read_state(ck)``."""
+    tensors = read_tensors(ck, OPTIMIZER)
+    noise = tensors.pop("noise_generator_state", None)
+    if noise is None:
+        raise CheckpointError(f"{ck / OPTIMIZER}: no noise_generator_state (an incomplete checkpoint)")
+    state: dict = {}
+    for name, v in tensors.items():
+        pid, _, key = name.partition(".")
+        if not pid.isdigit() or not key:
+            raise CheckpointError(f"{ck / OPTIMIZER}: unexpected tensor {name!r}")
+        state.setdefault(int(pid), {})[key] = v
+    if not isinstance(meta.get("losses"), list) or not isinstance(meta.get("param_groups"), list):
+        raise CheckpointError(f"{ck / STATE}: [losses] and [param_groups] expected lists: no training state to resume")
+    return {
+        "step": meta["step"],
+        "losses": meta["losses"],
+        "model": read_tensors(ck, MODEL),
+        "ema": read_tensors(ck, EMA),
+        "optimizer": {"state": state, "param_groups": meta["param_groups"]},
+        "noise": noise,
+    }
 
 
 def load_weights(module: torch.nn.Module, ck: Path, name: str, device: str | torch.device = "cpu") -> None:

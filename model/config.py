@@ -10,6 +10,7 @@ PREDICTIONS = ("epsilon", "v_prediction", "sample")
 
 @dataclass(frozen=True)
 class ModelConfig:
+    network: str = "unet2d"  # a row of model/registry.py's NETWORKS: the paper's U-Net
     image_size: int = 64  # tactile and condition images are square; 256 in the paper
     block_out_channels: tuple[int, ...] = (32, 64, 64)  # U-Net width per resolution level
     layers_per_block: int = 1  # resnet blocks per level (2 in Palette/SR3-style models)
@@ -29,8 +30,9 @@ class ModelConfig:
             raise ValueError(f"prediction must be one of {', '.join(PREDICTIONS)}, got {self.prediction!r}")
         levels = len(self.block_out_channels)
         if self.image_size % (2 ** (levels - 1)):
-            raise ValueError(f"image_size {self.image_size} must be divisible by {2 ** (levels - 1)} "
-                             f"({levels} resolution levels)")
+            raise ValueError(
+                f"image_size {self.image_size} must be divisible by {2 ** (levels - 1)} ({levels} resolution levels)"
+            )
         if not 0.0 <= self.cond_dropout < 1.0:
             raise ValueError(f"cond_dropout must be in [0, 1), got {self.cond_dropout}")
 

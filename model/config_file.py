@@ -15,8 +15,8 @@ from __future__ import annotations
 import dataclasses
 from pathlib import Path
 
-from common.table import Table, toml_table
 from common.errors import ConfigError
+from common.table import Table, toml_table
 
 
 def _fields(table: Table, defaults) -> dict:
@@ -29,8 +29,11 @@ def _fields(table: Table, defaults) -> dict:
         if isinstance(default, tuple):
             value = table.data[f.name]
             table.used.add(f.name)
-            if not isinstance(value, list) or not value or not all(isinstance(v, int) and not isinstance(v, bool)
-                                                                     for v in value):
+            if (
+                not isinstance(value, list)
+                or not value
+                or not all(isinstance(v, int) and not isinstance(v, bool) for v in value)
+            ):
                 raise table.error(f.name, f"must be a list of whole numbers, got {value!r}")
             out[f.name] = tuple(value)
         else:

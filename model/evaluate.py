@@ -26,7 +26,7 @@ from model.inference import TrainedModel
 from model.markers import marker_error
 from model.metrics import image_metrics
 
-PAPER_ROWS = [  # shared/REFERENCE.md §2, real data, 0–255 scale
+PAPER_ROWS = [  # docs/reference.md, "The model, as the paper states it": real data, 0–255 scale
     ("TACTO (RGB light)", 201.87, 10.31, 0.80, 25.43),
     ("Taxim (RGB light)", 56.715, 5.14, 0.88, 31.12),
     ("FOTS (RGB light)", 53.267, 4.91, 0.89, 32.30),
@@ -76,10 +76,21 @@ def _score(setting: str, real: list[np.ndarray], made: list[np.ndarray], seconds
     return Row(setting, mean["mse"], mean["mae"], mean["ssim"], mean["psnr"], marker, seconds, len(real), failures)
 
 
-def evaluate(run_dir: str | Path, split_dir: str | Path, *, part: str = "test", settings=(("ddim", 50),),
-             limit: int | None = None, seed: int = 0, markers: bool | None = None, baseline: bool = True,
-             device: str = "cpu", batch_size: int = 64, n_examples: int = 6,
-             log: Callable[[str], None] = lambda line: None) -> Evaluation:
+def evaluate(
+    run_dir: str | Path,
+    split_dir: str | Path,
+    *,
+    part: str = "test",
+    settings=(("ddim", 50),),
+    limit: int | None = None,
+    seed: int = 0,
+    markers: bool | None = None,
+    baseline: bool = True,
+    device: str = "cpu",
+    batch_size: int = 64,
+    n_examples: int = 6,
+    log: Callable[[str], None] = lambda line: None,
+) -> Evaluation:
     """``limit`` frames spread evenly over the part (all by default); ``markers`` None: on
     when the split's sensor has markers."""
     model = TrainedModel.load(run_dir, device=device)
@@ -149,8 +160,7 @@ def _fmt_row(name: str, r: Row) -> str:
         mk = "—" if not r.marker_failures else f"— ({r.marker_failures} frames without markers)"
     else:
         mk = f"{r.marker_px:.2f}" + (f" ({r.marker_failures} frames failed)" if r.marker_failures else "")
-    return (f"| {name} | {r.mse:.2f} | {r.mae:.2f} | {r.ssim:.3f} | {r.psnr:.2f} | {mk} | "
-            f"{r.seconds_per_image:.4f} |")
+    return f"| {name} | {r.mse:.2f} | {r.mae:.2f} | {r.ssim:.3f} | {r.psnr:.2f} | {mk} | {r.seconds_per_image:.4f} |"
 
 
 def report(ev: Evaluation, out: str | Path, *, title: str) -> Path:
@@ -160,11 +170,16 @@ def report(ev: Evaluation, out: str | Path, *, title: str) -> Path:
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     n = ev.rows[0].images if ev.rows else 0
-    lines = [f"# {title}", "",
-             f"{n} held-out frames. Metrics as shared/REFERENCE.md §3 defines them (0–255 scale, all channels, "
-             "whole image); marker error: mean distance per matched marker of the central 18×18, in px at the "
-             "evaluated size.", "",
-             "| method | MSE | MAE | SSIM | PSNR | marker px/marker | s / image |", "|---|---|---|---|---|---|---|"]
+    lines = [
+        f"# {title}",
+        "",
+        f"{n} held-out frames. Metrics as docs/reference.md#metrics defines them (0–255 scale, all channels, "
+        "whole image); marker error: mean distance per matched marker of the central 18×18, in px at the "
+        "evaluated size.",
+        "",
+        "| method | MSE | MAE | SSIM | PSNR | marker px/marker | s / image |",
+        "|---|---|---|---|---|---|---|",
+    ]
     for r in ev.rows:
         lines.append(_fmt_row(f"this model ({r.setting})", r))
     if ev.baseline is not None:
@@ -174,21 +189,43 @@ def report(ev: Evaluation, out: str | Path, *, title: str) -> Path:
     if ev.baseline is None:
         lines += ["", f"No physics-render row: {ev.baseline_note}"]
     elif ev.simulated:
-        lines += ["", "These frames come from the simulated rig, so the physics render is the model that made them: "
-                      "it differs from them only by sensor noise and the friction history of earlier frames. Here it "
-                      "is an oracle, not a baseline; on frames from a real sensor it is the lighting-model baseline."]
-    lines += ["", "## Error against run time", "", "![error against seconds per image](error_vs_time.png)", "",
-              "## Examples", "", "Columns: " + ", ".join(ev.examples) + ".", "", "![examples](samples.png)"]
+        lines += [
+            "",
+            "These frames come from the simulated rig, so the physics render is the model that made them: "
+            "it differs from them only by sensor noise and the friction history of earlier frames. Here it "
+            "is an oracle, not a baseline; on frames from a real sensor it is the lighting-model baseline.",
+        ]
+    lines += [
+        "",
+        "## Error against run time",
+        "",
+        "![error against seconds per image](error_vs_time.png)",
+        "",
+        "## Examples",
+        "",
+        "Columns: " + ", ".join(ev.examples) + ".",
+        "",
+        "![examples](samples.png)",
+    ]
     error_vs_time_plot(ev, out / "error_vs_time.png")
     samples_figure(ev.examples, out / "samples.png")
     if ev.markers:
         made = marker_flow_figure(ev, out / "marker_flow.png")
         if made:
-            lines += ["", "## Marker motion", "",
-                      "Arrows from each central marker at rest (the run's no-contact frame) to where it is found, "
-                      "drawn ×4: real, physics render, this model.", "", "![marker motion](marker_flow.png)"]
+            lines += [
+                "",
+                "## Marker motion",
+                "",
+                "Arrows from each central marker at rest (the run's no-contact frame) to where it is found, "
+                "drawn ×4: real, physics render, this model.",
+                "",
+                "![marker motion](marker_flow.png)",
+            ]
     (out / "report.md").write_text("\n".join(lines) + "\n")
-    payload = {"model": [asdict(r) for r in ev.rows], "physics_render": asdict(ev.baseline) if ev.baseline else None,
-               "physics_render_note": ev.baseline_note}
+    payload = {
+        "model": [asdict(r) for r in ev.rows],
+        "physics_render": asdict(ev.baseline) if ev.baseline else None,
+        "physics_render_note": ev.baseline_note,
+    }
     (out / "metrics.json").write_text(json.dumps(payload, indent=2) + "\n")
     return out / "report.md"

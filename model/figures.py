@@ -36,8 +36,13 @@ def error_vs_time_plot(ev, path: Path) -> None:
             if pts:
                 ax.plot(*zip(*pts), "o-", label=f"model, {name}")
                 for r, (x, y) in zip(rows, pts):
-                    ax.annotate(r.setting.split(", ")[1].split()[0], (x, y), textcoords="offset points",
-                                xytext=(4, 4), fontsize=7)
+                    ax.annotate(
+                        r.setting.split(", ")[1].split()[0],
+                        (x, y),
+                        textcoords="offset points",
+                        xytext=(4, 4),
+                        fontsize=7,
+                    )
         b = ev.baseline
         if b is not None and getattr(b, key) is not None:
             ax.plot([b.seconds_per_image], [getattr(b, key)], "*", markersize=12, color="black", label="physics render")
@@ -102,11 +107,12 @@ def marker_flow_figure(ev, path: Path) -> bool:
         sources.append(("physics render", (200, 60, 0)))
     if ev.rows:
         sources.append((ev.rows[-1].setting, (0, 0, 220)))
-    rows = []
+    rows: list[np.ndarray] = []
     for i, ref in enumerate(ev.references):
         panels = [_flow_panel(ref, ev.examples[name][i], colour) for name, colour in sources]
-        if all(p is not None for p in panels):
-            rows.append(np.concatenate(panels, axis=1))
+        found = [p for p in panels if p is not None]
+        if len(found) == len(panels):
+            rows.append(np.concatenate(found, axis=1))
     if not rows:
         return False
     header = np.concatenate([_header(name, rows[0].shape[1] // len(sources)) for name, _ in sources], axis=1)

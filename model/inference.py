@@ -8,22 +8,33 @@ from pathlib import Path
 import cv2
 import numpy as np
 import torch
+from torch import nn
 
 from dataset.condition import condition_image, normalise_wrench
 from dataset.torch_dataset import image_to_tensor, scale_images, tensor_to_image
+from model import checkpoint as C
 from model.config import ModelConfig
 from model.diffusion import Diffusion
-from model.network import ContactDenoiser
-from model import checkpoint as C
+from model.registry import build_network
 
 
-def generate_items(net, diffusion: Diffusion, items: list[dict], device, *, steps: int, sampler: str, seed: int,
-                   guidance: float = 1.0, batch_size: int = 64):
+def generate_items(
+    net,
+    diffusion: Diffusion,
+    items: list[dict],
+    device,
+    *,
+    steps: int,
+    sampler: str,
+    seed: int,
+    guidance: float = 1.0,
+    batch_size: int = 64,
+):
     """Generated frames (BGR uint8), in order, for Dataset items (their condition and wrench),
     ``batch_size`` at a time from one noise stream seeded with ``seed``."""
     g = torch.Generator(device=device).manual_seed(seed)
     for lo in range(0, len(items), batch_size):
-        chunk = items[lo:lo + batch_size]
+        chunk = items[lo : lo + batch_size]
         cond = scale_images(torch.stack([it["condition"] for it in chunk]).to(device))
         wrench = torch.stack([it["wrench"] for it in chunk]).to(device)
         out = diffusion.sample(net, cond, wrench, steps=steps, sampler=sampler, guidance=guidance, generator=g)
@@ -32,7 +43,7 @@ def generate_items(net, diffusion: Diffusion, items: list[dict], device, *, step
 
 @dataclass
 class TrainedModel:
-    net: ContactDenoiser
+    net: nn.Module  # the EMA weights of the network ModelConfig.network names
     diffusion: Diffusion
     cfg: ModelConfig
     wrench_mean: np.ndarray
@@ -47,13 +58,22 @@ class TrainedModel:
         meta = C.read_state(ck, hint=f" (train one with `train --out {run_dir}`)")
         cfg = C.model_config(meta, ck / C.STATE)
         mean, std, mm_per_px, frame_px = C.conditioning(meta, ck / C.STATE)
-        net = ContactDenoiser(cfg)
+        net = build_network(cfg)
         C.load_weights(net, ck, C.EMA)
         dev = torch.device(device)
         return cls(net.to(dev).eval(), Diffusion(cfg), cfg, np.asarray(mean), np.asarray(std), mm_per_px, frame_px, dev)
 
-    def generate(self, object_bgr: np.ndarray, wrench: np.ndarray, pose=(0.0, 0.0, 0.0), *, steps: int = 50,
-                 sampler: str = "ddim", seed: int = 0, guidance: float = 1.0) -> np.ndarray:
+    def generate(
+        self,
+        object_bgr: np.ndarray,
+        wrench: np.ndarray,
+        pose=(0.0, 0.0, 0.0),
+        *,
+        steps: int = 50,
+        sampler: str = "ddim",
+        seed: int = 0,
+        guidance: float = 1.0,
+    ) -> np.ndarray:
         """One tactile frame (BGR uint8, S×S) for an object image, a wrench (N, N·mm) and a pose (x, y mm, θ deg)."""
         wrench = np.asarray(wrench, dtype=np.float64)
         if wrench.shape != (6,) or not np.all(np.isfinite(wrench)):
@@ -61,23 +81,42 @@ class TrainedModel:
         cond = scale_images(image_to_tensor(self.condition(object_bgr, pose))[None])
         w = torch.from_numpy(normalise_wrench(wrench, self.wrench_mean, self.wrench_std).astype(np.float32))[None]
         g = torch.Generator(device=self.device).manual_seed(seed)
-        out = self.diffusion.sample(self.net, cond.to(self.device), w.to(self.device), steps=steps, sampler=sampler,
-                                    guidance=guidance, generator=g)[0]
+        out = self.diffusion.sample(
+            self.net,
+            cond.to(self.device),
+            w.to(self.device),
+            steps=steps,
+            sampler=sampler,
+            guidance=guidance,
+            generator=g,
+        )[0]
         return tensor_to_image(out)
 
     def condition(self, object_bgr: np.ndarray, pose=(0.0, 0.0, 0.0)) -> np.ndarray:
         """The condition image (BGR uint8, S×S) for an object image of the sensor's field of view at a
         pose (x, y mm, θ deg): what training built from the run's object image at the frame's pose."""
-        return condition_image(object_bgr, pose[0], pose[1], pose[2], self.mm_per_px, self.frame_px,
-                               self.cfg.image_size)
+        return condition_image(
+            object_bgr, pose[0], pose[1], pose[2], self.mm_per_px, self.frame_px, self.cfg.image_size
+        )
 
     def generate_items(self, items: list[dict], **kwargs):
         """``generate_items`` with this model's EMA weights."""
         return generate_items(self.net, self.diffusion, items, self.device, **kwargs)
 
-    def generate_split(self, split_dir: str | Path, part: str, out_dir: str | Path, *, limit: int | None = None,
-                       steps: int = 50, sampler: str = "ddim", seed: int = 0, guidance: float = 1.0,
-                       batch_size: int = 64, log=lambda line: None) -> int:
+    def generate_split(
+        self,
+        split_dir: str | Path,
+        part: str,
+        out_dir: str | Path,
+        *,
+        limit: int | None = None,
+        steps: int = 50,
+        sampler: str = "ddim",
+        seed: int = 0,
+        guidance: float = 1.0,
+        batch_size: int = 64,
+        log=lambda line: None,
+    ) -> int:
         """Every frame of a split's part (``limit``: that many, spread evenly), as RUN-FRAME.png
         in ``out_dir`` with index.csv (run file, frame, wrench, pose, png). Returns the count."""
         import csv
@@ -90,18 +129,41 @@ class TrainedModel:
         items = [data[int(i)] for i in spread(len(data), limit)]
         out = Path(out_dir)
         out.mkdir(parents=True, exist_ok=True)
-        made = self.generate_items(items, steps=steps, sampler=sampler, seed=seed, guidance=guidance,
-                                   batch_size=batch_size)
+        made = self.generate_items(
+            items, steps=steps, sampler=sampler, seed=seed, guidance=guidance, batch_size=batch_size
+        )
         with open(out / "index.csv", "w", newline="") as fh:
             writer = csv.writer(fh)
-            writer.writerow(["run", "frame", "Fx_N", "Fy_N", "Fz_N", "Mx_Nmm", "My_Nmm", "Mz_Nmm",
-                             "x_mm", "y_mm", "z_mm", "theta_deg", "png"])
+            writer.writerow(
+                [
+                    "run",
+                    "frame",
+                    "Fx_N",
+                    "Fy_N",
+                    "Fz_N",
+                    "Mx_Nmm",
+                    "My_Nmm",
+                    "Mz_Nmm",
+                    "x_mm",
+                    "y_mm",
+                    "z_mm",
+                    "theta_deg",
+                    "png",
+                ]
+            )
             for k, (it, img) in enumerate(zip(items, made), 1):
                 name = f"{it['run']:02d}-{it['frame']:06d}.png"
                 cv2.imwrite(str(out / name), img)
                 raw = it["wrench"].numpy() * data.std + data.mean
-                writer.writerow([data.runs[it["run"]], it["frame"], *(f"{v:.6g}" for v in raw),
-                                 *(f"{v:.6g}" for v in it["pose"].numpy()), name])
+                writer.writerow(
+                    [
+                        data.runs[it["run"]],
+                        it["frame"],
+                        *(f"{v:.6g}" for v in raw),
+                        *(f"{v:.6g}" for v in it["pose"].numpy()),
+                        name,
+                    ]
+                )
                 if k % batch_size == 0 or k == len(items):
                     log(f"{k}/{len(items)} frames")
         return len(items)

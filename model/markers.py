@@ -1,6 +1,6 @@
 """Marker displacement error: how far generated markers sit from the real ones.
 
-shared/REFERENCE.md §2: markers found by adaptive thresholding and contour detection;
+docs/reference.md, "Metrics": markers found by adaptive thresholding and contour detection;
 the central 18×18 = 324 markers matched between the real and the generated frame;
 the error is the sum (and the mean per marker) of the Euclidean distances between
 matched centroids, in pixels. Markers are found in each frame independently, so
@@ -18,8 +18,9 @@ from scipy.optimize import linear_sum_assignment
 CENTRAL = 18
 
 
-def find_markers(image: np.ndarray, *, block: int = 21, offset: float = 12.0, min_area: float = 3.0,
-                 max_area_frac: float = 0.01) -> np.ndarray:
+def find_markers(
+    image: np.ndarray, *, block: int = 21, offset: float = 12.0, min_area: float = 3.0, max_area_frac: float = 0.01
+) -> np.ndarray:
     """(n, 2) marker centroids (col, row) in pixels: dark blobs on the gel."""
     gray = cv2.cvtColor(image, cv2.COLOR_BGR2GRAY) if image.ndim == 3 else image
     mask = cv2.adaptiveThreshold(gray, 255, cv2.ADAPTIVE_THRESH_GAUSSIAN_C, cv2.THRESH_BINARY_INV, block, offset)

@@ -1,4 +1,4 @@
-"""The evaluation metrics the field uses, as shared/REFERENCE.md §3 defines them.
+"""The evaluation metrics the field uses, as docs/reference.md ("Metrics") defines them.
 
 Images are uint8-range (0–255), (H, W, 3), compared over all channels and the whole
 image. numpy/OpenCV only: evaluating needs no torch.
@@ -71,5 +71,9 @@ def ssim(a, b) -> float:
 
 
 def image_metrics(real, generated) -> dict[str, float]:
-    return {"mse": mse(real, generated), "mae": mae(real, generated), "ssim": ssim(real, generated),
-            "psnr": psnr(real, generated)}
+    return {
+        "mse": mse(real, generated),
+        "mae": mae(real, generated),
+        "ssim": ssim(real, generated),
+        "psnr": psnr(real, generated),
+    }

@@ -1,9 +1,12 @@
-"""The contact-condition-guided denoiser: a diffusers U-Net over [noisy tactile, object image, H(F)].
+"""The ``unet2d`` network: a diffusers U-Net over [noisy tactile, object image, H(F)] (Palette's
+concatenated condition), and the input checks and wrench plane any network may share.
 
-Shapes: noisy (B, 3, S, S), object image (B, 3, S, S), wrench (B, 6) normalised,
+Shapes: noisy y_t (B, 3, S, S), object image (B, 3, S, S), wrench (B, 6) normalised,
 timesteps (B,). The paper's H(F) expands the wrench into a (B, 1, S, S) plane (here:
 six vertical stripes, one per component); the learned embedding maps it to the
-U-Net's time-embedding width and is added there, as the timestep is.
+U-Net's time-embedding width and is added there, as the timestep is. The output is the
+``ModelConfig.prediction`` target (y₀ by default, or ε, or v); the diffusion maths
+(model/diffusion.py) turns it into what the samplers need. Other networks: model/registry.py.
 """
 
 from __future__ import annotations
@@ -20,6 +23,13 @@ def wrench_plane(wrench: torch.Tensor, size: int) -> torch.Tensor:
     return stripes[:, None, None, :].expand(-1, 1, size, size)
 
 
+def check_inputs(noisy: torch.Tensor, condition: torch.Tensor, wrench: torch.Tensor) -> None:
+    """Clear errors for inputs no denoiser can take (ValueError naming the shapes)."""
+    if condition.shape != noisy.shape:
+        raise ValueError(f"condition image {tuple(condition.shape)} must match the tactile image {tuple(noisy.shape)}")
+    check_wrench(wrench, noisy.shape[0])
+
+
 def check_wrench(wrench: torch.Tensor, batch: int, limit: float = 1e3) -> None:
     """A clear error for a wrench that cannot be a normalised six-axis reading."""
     if wrench.ndim != 2 or wrench.shape != (batch, 6):
@@ -27,8 +37,10 @@ def check_wrench(wrench: torch.Tensor, batch: int, limit: float = 1e3) -> None:
     if not torch.isfinite(wrench).all():
         raise ValueError("wrench has NaN or inf")
     if wrench.abs().max() > limit:
-        raise ValueError(f"wrench component {wrench.abs().max().item():.3g} is absurd for a normalised wrench "
-                         f"(|value| > {limit:g}): normalise with the split's statistics")
+        raise ValueError(
+            f"wrench component {wrench.abs().max().item():.3g} is absurd for a normalised wrench "
+            f"(|value| > {limit:g}): normalise with the split's statistics"
+        )
 
 
 class ContactDenoiser(nn.Module):
@@ -44,25 +56,32 @@ class ContactDenoiser(nn.Module):
             down[-1], up[0] = "AttnDownBlock2D", "AttnUpBlock2D"
         embed_dim = cfg.block_out_channels[0] * 4  # UNet2DModel's time-embedding width
         self.unet = UNet2DModel(
-            sample_size=cfg.image_size, in_channels=3 + 3 + (1 if cfg.uses_plane else 0), out_channels=3,
-            block_out_channels=cfg.block_out_channels, layers_per_block=cfg.layers_per_block,
-            down_block_types=tuple(down), up_block_types=tuple(up),
+            sample_size=cfg.image_size,
+            in_channels=3 + 3 + (1 if cfg.uses_plane else 0),
+            out_channels=3,
+            block_out_channels=cfg.block_out_channels,
+            layers_per_block=cfg.layers_per_block,
+            down_block_types=tuple(down),
+            up_block_types=tuple(up),
             class_embed_type="identity" if cfg.uses_embedding else None,
             norm_num_groups=min(32, cfg.block_out_channels[0]),
         )
-        self.wrench_embed = (nn.Sequential(nn.Linear(6, embed_dim), nn.SiLU(), nn.Linear(embed_dim, embed_dim))
-                             if cfg.uses_embedding else None)
+        self.wrench_embed = (
+            nn.Sequential(nn.Linear(6, embed_dim), nn.SiLU(), nn.Linear(embed_dim, embed_dim))
+            if cfg.uses_embedding
+            else None
+        )
 
-    def forward(self, noisy: torch.Tensor, timesteps: torch.Tensor, condition: torch.Tensor,
-                wrench: torch.Tensor) -> torch.Tensor:
-        """Predicted noise ε, (B, 3, S, S)."""
-        b, _, s, _ = noisy.shape
-        if condition.shape != noisy.shape:
-            raise ValueError(f"condition image {tuple(condition.shape)} must match the tactile image {tuple(noisy.shape)}")
-        check_wrench(wrench, b)
+    def forward(
+        self, noisy: torch.Tensor, timesteps: torch.Tensor, condition: torch.Tensor, wrench: torch.Tensor
+    ) -> torch.Tensor:
+        """The prediction target (ModelConfig.prediction: y₀, ε or v), (B, 3, S, S)."""
+        s = noisy.shape[-1]
+        check_inputs(noisy, condition, wrench)
         parts = [noisy, condition]  # (B, 3, S, S) each
         if self.cfg.uses_plane:
             parts.append(wrench_plane(wrench, s))  # (B, 1, S, S)
         x = torch.cat(parts, dim=1)  # (B, 6 or 7, S, S)
         labels = self.wrench_embed(wrench) if self.wrench_embed is not None else None  # (B, 4·C0)
-        return self.unet(x, timesteps, class_labels=labels).sample
+        # diffusers types ModelMixin without nn.Module.__call__; the call is the module's forward with hooks
+        return self.unet(x, timesteps, class_labels=labels).sample  # type: ignore[operator]

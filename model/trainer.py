@@ -1,35 +1,30 @@
-"""Training: a loop that knows the denoiser only through the diffusion loss.
+"""Training: a loop that knows the network only through the diffusion loss (minGPT's trainer).
 
-Exact resume: the data order is a function of (seed, step) alone, and a checkpoint
-holds the model, its EMA, the optimizer and the noise generator, so a resumed run
-takes the same steps with the same losses as an uninterrupted one. Checkpoints are
-safetensors (no pickle): tensors in .safetensors files, the rest in JSON.
+``Trainer(config, net, diffusion, data, callbacks)`` is handed a built network, the
+diffusion (the loop calls only its ``batch_loss(net, batch, generator)``), a Dataset of
+dict items and callbacks; ``model/build.py`` builds them all from the configs. Progress
+lines, validation images and checkpoints are callbacks (model/callbacks.py) on the
+events ``on_train_start``, ``on_step_end``, ``on_train_end``, ``on_save`` and ``on_resume``.
+
+Exact resume: the data order is a function of (seed, step) alone, and ``state()`` holds
+the weights, their EMA, the optimizer and the noise generator, so a run resumed from it
+takes the same steps with the same losses as an uninterrupted one.
 
 Several GPUs or nodes: ``accelerate launch -m cli.model_app ...`` (or ``accelerate launch
-$(which train) ...``) runs this same loop in each process; each takes its share of
-the step's batch (the global batch and its order are the single-process ones), the
-gradients are averaged by accelerate, and the main process logs, samples and saves.
+$(which train) ...``) runs this same loop in each process; each takes its share of the
+step's batch (the global batch and its order are the single-process ones), the gradients
+are averaged by accelerate, and callbacks act on the main process only (``is_main``).
 Mixed precision (bf16, or fp16 with loss scaling) on CUDA.
 """
 
 from __future__ import annotations
 
 import copy
-import dataclasses
-import time
 from dataclasses import dataclass
-from pathlib import Path
-from typing import Callable
+from typing import Sequence
 
 import numpy as np
 import torch
-
-from dataset.torch_dataset import TactileDataset, to_model_inputs
-from model import checkpoint as C
-from model.checkpoint import CheckpointError
-from model.config import ModelConfig
-from model.diffusion import Diffusion
-from model.network import ContactDenoiser
 
 
 @dataclass(frozen=True)
@@ -46,166 +41,140 @@ class TrainConfig:
     mixed_precision: str = "auto"  # auto (bf16 on CUDA when supported, else fp16; none on CPU) | no | fp16 | bf16
 
 
+class Callback:
+    """Hooks the trainer calls; each gets the trainer. A subclass overrides what it needs;
+    ``on_save`` returns where it saved, ``on_resume`` True when it restored the state."""
+
+    def on_train_start(self, trainer: "Trainer") -> None: ...
+    def on_step_end(self, trainer: "Trainer") -> None: ...
+    def on_train_end(self, trainer: "Trainer") -> None: ...
+    def on_save(self, trainer: "Trainer"): ...
+    def on_resume(self, trainer: "Trainer"): ...
+
+
 class Trainer:
-    def __init__(self, model_cfg: ModelConfig, train_cfg: TrainConfig, split_dir: str | Path, out_dir: str | Path,
-                 *, device: str | None = None, log: Callable[[str], None] = print):
+    def __init__(
+        self,
+        config: TrainConfig,
+        net: torch.nn.Module,
+        diffusion,
+        data,
+        callbacks: Sequence[Callback] = (),
+        *,
+        device: str | None = None,
+    ):
         from accelerate import Accelerator
 
-        self.model_cfg, self.cfg = model_cfg, train_cfg
-        self.out = Path(out_dir)
-        self.acc = Accelerator(cpu=device == "cpu", mixed_precision=_precision(train_cfg.mixed_precision, device))
+        self.config = config
+        self.acc = Accelerator(cpu=device == "cpu", mixed_precision=_precision(config.mixed_precision, device))
         self.device = self.acc.device
-        self.main = self.acc.is_main_process
-        self.log = log if self.main else (lambda line: None)
-        torch.manual_seed(train_cfg.seed)  # initial weights: the same in every process
-        net = ContactDenoiser(model_cfg).to(self.device)
+        self.is_main = self.acc.is_main_process
+        if config.batch_size % self.acc.num_processes:
+            raise ValueError(f"batch size {config.batch_size} must divide among {self.acc.num_processes} processes")
+        if len(data) < config.batch_size:
+            raise ValueError(f"{len(data)} training items, fewer than one batch of {config.batch_size}")
+        net = net.to(self.device)
         self.ema = copy.deepcopy(net).eval().requires_grad_(False)
-        opt = torch.optim.Adam(net.parameters(), lr=train_cfg.lr)
-        self.net, self.opt = self.acc.prepare(net, opt)
-        self.diffusion = Diffusion(model_cfg)
-        self.data = TactileDataset(split_dir, "train", size=model_cfg.image_size)
-        if len(self.data) < train_cfg.batch_size:
-            raise ValueError(f"{split_dir}: {len(self.data)} training frames, fewer than one batch of {train_cfg.batch_size}")
-        if train_cfg.batch_size % self.acc.num_processes:
-            raise ValueError(f"batch size {train_cfg.batch_size} must divide among {self.acc.num_processes} processes")
-        self.split_dir = Path(split_dir)
+        self.net, self.opt = self.acc.prepare(net, torch.optim.Adam(net.parameters(), lr=config.lr))
+        self.diffusion, self.data, self.callbacks = diffusion, data, list(callbacks)
         self.step = 0
-        # each process its own noise stream; process 0's is the single-process one
-        self.noise = torch.Generator(device=self.device).manual_seed(train_cfg.seed + 1 + 1000 * self.acc.process_index)
+        self.until = config.steps  # the step this train() call stops at
         self.losses: list[float] = []
-        self._validation: tuple[str, list[dict]] | None = None
+        # each process its own noise stream; process 0's is the single-process one
+        self.noise = torch.Generator(device=self.device).manual_seed(config.seed + 1 + 1000 * self.acc.process_index)
+
+    def _fire(self, event: str) -> list:
+        return [getattr(cb, event)(self) for cb in self.callbacks]
 
     # -- data order: a pure function of (seed, step) ---------------------------------
     def batch_indices(self, step: int) -> np.ndarray:
-        b = self.cfg.batch_size
+        b = self.config.batch_size
         per_epoch = len(self.data) // b  # drop the last partial batch
         epoch, i = divmod(step, per_epoch)
-        order = np.random.default_rng([self.cfg.seed, epoch]).permutation(len(self.data))
-        return order[i * b:(i + 1) * b]
+        order = np.random.default_rng([self.config.seed, epoch]).permutation(len(self.data))
+        return order[i * b : (i + 1) * b]
 
     def _batch(self, step: int) -> dict:
-        mine = self.batch_indices(step)[self.acc.process_index::self.acc.num_processes]
+        """This process's share of the step's batch: the items' tensors stacked, on the device."""
+        mine = self.batch_indices(step)[self.acc.process_index :: self.acc.num_processes]
         items = [self.data[int(i)] for i in mine]
-        batch = {k: torch.stack([it[k] for it in items]) for k in ("condition", "wrench", "tactile")}
-        return to_model_inputs(batch, self.device)
+        return {
+            k: torch.stack([it[k] for it in items]).to(self.device, non_blocking=True)
+            for k, v in items[0].items()
+            if isinstance(v, torch.Tensor)
+        }
 
     # -- the loop ------------------------------------------------------------------------
     def train(self, until: int | None = None) -> list[float]:
-        until = self.cfg.steps if until is None else until
-        t0, done = time.perf_counter(), 0
-        while self.step < until:
+        """Optimise up to step ``until`` (the config's steps by default); the losses of every step so far."""
+        self.until = self.config.steps if until is None else until
+        self._fire("on_train_start")
+        while self.step < self.until:
             batch = self._batch(self.step)
             with self.acc.autocast():
-                loss = self.diffusion.loss(self.net, batch["tactile"], batch["condition"], batch["wrench"],
-                                           generator=self.noise)
+                loss = self.diffusion.batch_loss(self.net, batch, generator=self.noise)
             self.opt.zero_grad(set_to_none=True)
             self.acc.backward(loss)
             self.opt.step()
-            with torch.no_grad():
-                # warm-up: early on the EMA follows the weights closely, so a short run's EMA
-                # holds no trace of the random initial weights
-                decay = min(self.cfg.ema_decay, (1 + self.step) / (10 + self.step))
-                for e, p in zip(self.ema.parameters(), self.acc.unwrap_model(self.net).parameters()):
-                    e.lerp_(p.float(), 1.0 - decay)
+            self._update_ema()
             self.step += 1
-            done += 1
             self.losses.append(float(self.acc.reduce(loss.detach().float(), "mean")))
-            if self.step % 50 == 0 or self.step == until:
-                rate = done * self.cfg.batch_size / (time.perf_counter() - t0)
-                self.log(f"step {self.step}/{until}  loss {np.mean(self.losses[-50:]):.4f}  {rate:.1f} images/s")
-            if self.cfg.sample_every and self.step % self.cfg.sample_every == 0:
-                self.sample_validation()
-            if self.step % self.cfg.checkpoint_every == 0:
-                self.save()
+            self._fire("on_step_end")
+        self._fire("on_train_end")
         return self.losses
 
-    # -- validation samples ------------------------------------------------------------
-    def sample_validation(self) -> Path | None:
-        """samples/step-NNNNNN.png from the EMA weights: object at pose, real, generated, for a
-        fixed set of held-out frames (the val part, else test). Touches no training state."""
-        if not self.main:
-            return None
-        from dataset.torch_dataset import uint8_tensor_to_image
-        from model.figures import samples_figure
-        from model.inference import generate_items
+    @torch.no_grad()
+    def _update_ema(self) -> None:
+        # warm-up: early on the EMA follows the weights closely, so a short run's EMA
+        # holds no trace of the random initial weights
+        decay = min(self.config.ema_decay, (1 + self.step) / (10 + self.step))
+        for e, p in zip(self.ema.parameters(), self.acc.unwrap_model(self.net).parameters()):
+            e.lerp_(p.float(), 1.0 - decay)
 
-        part, items = self._validation_items()
-        if not items:
-            return None
-        made = generate_items(self.ema, self.diffusion, items, self.device, steps=self.cfg.sample_steps,
-                              sampler="ddim", seed=self.cfg.seed)
-        path = self.out / "samples" / f"step-{self.step:06d}.png"
-        path.parent.mkdir(parents=True, exist_ok=True)
-        samples_figure({"object at pose": [uint8_tensor_to_image(it["condition"]) for it in items],
-                        "real": [uint8_tensor_to_image(it["tactile"]) for it in items],
-                        f"step {self.step}": list(made)}, path)
-        self.log(f"validation samples ({part}): {path}")
-        return path
+    # -- state for exact resume ----------------------------------------------------------
+    def state(self) -> dict:
+        """Everything exact resume needs: step, losses, weights, EMA, optimizer, noise generator; a
+        copy on the CPU (training on does not change it)."""
+        return _cpu_copy(
+            {
+                "step": self.step,
+                "losses": list(self.losses),
+                "model": self.acc.unwrap_model(self.net).state_dict(),
+                "ema": self.ema.state_dict(),
+                "optimizer": self.opt.state_dict(),
+                "noise": self.noise.get_state(),
+            }
+        )
 
-    def _validation_items(self) -> tuple[str, list[dict]]:
-        """The held-out frames every validation PNG shows: read once."""
-        if self._validation is None:
-            from dataset.split import load_split
-            from dataset.torch_dataset import spread
+    def load_state(self, state: dict) -> None:
+        """Restore ``state()``'s output. Raises RuntimeError (weights) or KeyError, TypeError,
+        ValueError (optimizer) when it does not fit this network."""
+        self.acc.unwrap_model(self.net).load_state_dict(state["model"])
+        self.ema.load_state_dict(state["ema"])
+        self.opt.load_state_dict(state["optimizer"])
+        if self.acc.process_index == 0:  # the others restart their streams (one state is saved)
+            self.noise.set_state(state["noise"])
+        self.step, self.losses = int(state["step"]), [float(x) for x in state["losses"]]
 
-            _, parts = load_split(self.split_dir)
-            part = "val" if "val" in parts else "test"
-            data = TactileDataset(self.split_dir, part, size=self.model_cfg.image_size)
-            self._validation = part, [data[int(i)] for i in spread(len(data), self.cfg.samples)]
-        return self._validation
-
-    # -- checkpoints -------------------------------------------------------------------
-    def save(self) -> Path:
-        ck = C.folder(self.out)
-        self.acc.wait_for_everyone()
-        if not self.main:
-            return ck
-        ck.mkdir(parents=True, exist_ok=True)
-        C.write_tensors(ck, C.MODEL, self.acc.unwrap_model(self.net).state_dict())
-        C.write_tensors(ck, C.EMA, self.ema.state_dict())
-        opt = self.opt.state_dict()
-        tensors = {f"{pid}.{key}": v for pid, st in opt["state"].items() for key, v in st.items()
-                   if isinstance(v, torch.Tensor)}
-        tensors["noise_generator_state"] = self.noise.get_state()
-        C.write_tensors(ck, C.OPTIMIZER, tensors)
-        meta = {"step": self.step, "model": dataclasses.asdict(self.model_cfg), "train": dataclasses.asdict(self.cfg),
-                "param_groups": opt["param_groups"], "losses": self.losses,
-                # what inference needs to condition like training did
-                "wrench_mean": self.data.manifest["wrench_mean"], "wrench_std": self.data.manifest["wrench_std"],
-                "mm_per_px": self.data.mm_per_px[0],
-                # the frame width that mm_per_px belongs to: an object image spans frame_px × mm_per_px mm
-                "frame_px": int(self.data.manifest["runs"][0]["frame_shape"][1])}
-        C.write_state(ck, meta)  # last: a checkpoint with state.json is a complete one
-        return ck
+    def save(self):
+        """Ask the callbacks to save (``on_save``): where the first one saved, else None."""
+        return next((r for r in self._fire("on_save") if r is not None), None)
 
     def resume(self) -> None:
-        ck = C.folder(self.out)
-        meta = C.read_state(ck, hint=" to resume")
-        saved = C.model_config(meta, ck / C.STATE)
-        if saved != self.model_cfg:
-            mine, theirs = dataclasses.asdict(self.model_cfg), dataclasses.asdict(saved)
-            diff = {k: (theirs.get(k), v) for k, v in mine.items() if theirs.get(k) != v}
-            raise CheckpointError(f"{ck}: trained with a different model config (checkpoint vs now: {diff})")
-        C.load_weights(self.acc.unwrap_model(self.net), ck, C.MODEL, self.device)
-        C.load_weights(self.ema, ck, C.EMA, self.device)
-        tensors = C.read_tensors(ck, C.OPTIMIZER)
-        noise_state = tensors.pop("noise_generator_state", None)
-        if noise_state is None:
-            raise CheckpointError(f"{ck / C.OPTIMIZER}: no noise_generator_state (an incomplete checkpoint)")
-        if self.acc.process_index == 0:  # the others restart their streams (one state is saved)
-            self.noise.set_state(noise_state)
-        state: dict = {}
-        for name, v in tensors.items():
-            pid, _, key = name.partition(".")
-            if not pid.isdigit() or not key:
-                raise CheckpointError(f"{ck / C.OPTIMIZER}: unexpected tensor {name!r}")
-            state.setdefault(int(pid), {})[key] = v.to(self.device) if key != "step" else v
-        try:
-            self.opt.load_state_dict({"state": state, "param_groups": meta["param_groups"]})
-            self.losses = [float(x) for x in meta["losses"]]
-        except (KeyError, TypeError, ValueError) as exc:
-            raise CheckpointError(f"{ck}: optimizer state does not fit this model ({exc})") from None
-        self.step = meta["step"]
+        """Ask the callbacks to restore a saved state (``on_resume``); ValueError when none can."""
+        if not any(self._fire("on_resume")):
+            raise ValueError("nothing to resume from: no callback restores a saved state")
+
+
+def _cpu_copy(obj):
+    """Tensors copied to the CPU, in nested dicts and lists (state dicts share the live tensors)."""
+    if isinstance(obj, torch.Tensor):
+        return obj.detach().to("cpu", copy=True)
+    if isinstance(obj, dict):
+        return {k: _cpu_copy(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return type(obj)(_cpu_copy(v) for v in obj)
+    return obj
 
 
 def _precision(choice: str, device: str | None) -> str:

@@ -66,14 +66,22 @@ def sphere(diameter_mm: float) -> Indenter:
 
 def flat_circle(diameter_mm: float) -> Indenter:
     a = diameter_mm / 2
-    return Indenter(f"circle{diameter_mm:g}mm", f"flat circular punch, {diameter_mm:g} mm diameter", a,
-                    lambda u, v: np.where(_radius(u, v) <= a, 0.0, FAR_MM))
+    return Indenter(
+        f"circle{diameter_mm:g}mm",
+        f"flat circular punch, {diameter_mm:g} mm diameter",
+        a,
+        lambda u, v: np.where(_radius(u, v) <= a, 0.0, FAR_MM),
+    )
 
 
 def square(side_mm: float = 6.0) -> Indenter:
     s = side_mm / 2
-    return Indenter("square", f"flat square punch, {side_mm:g} mm side", s * math.sqrt(2),
-                    lambda u, v: np.where((np.abs(u) <= s) & (np.abs(v) <= s), 0.0, FAR_MM))
+    return Indenter(
+        "square",
+        f"flat square punch, {side_mm:g} mm side",
+        s * math.sqrt(2),
+        lambda u, v: np.where((np.abs(u) <= s) & (np.abs(v) <= s), 0.0, FAR_MM),
+    )
 
 
 def ring(outer_mm: float = 8.0, inner_mm: float = 5.0) -> Indenter:
@@ -125,7 +133,7 @@ def irregular(seed: int = 7, amplitude_mm: float = 0.3, corr_mm: float = 0.8) ->
     U, V = np.meshgrid(axis, axis)
     top = np.zeros_like(U)
     for (cx, cy), hgt in zip(centres, heights):
-        near = (np.abs(U[0] - cx) < 4 * corr_mm)
+        near = np.abs(U[0] - cx) < 4 * corr_mm
         cols = np.nonzero(near)[0]
         rows = np.nonzero(np.abs(V[:, 0] - cy) < 4 * corr_mm)[0]
         if cols.size and rows.size:

@@ -1,1 +1,1 @@
-"""Named trajectories expanded into steps (issue 4: not yet built)."""
+"""Protocols: TOML files (library/) checked and expanded into a list of steps; imports no rig (docs/protocols.md)."""

@@ -11,8 +11,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from protocols.spec import Protocol
 from common.errors import ConfigError
+from protocols.spec import Protocol
 
 AXES = ("x", "y", "z", "theta")
 
@@ -36,7 +36,8 @@ class Step:
 
     def pose_at(self, t_s: float) -> tuple[float, float, float, float]:
         f = 0.0 if self.duration_s == 0 else min(1.0, max(0.0, t_s / self.duration_s))
-        return tuple(a + (b - a) * f for a, b in zip(self.start, self.end))
+        x, y, z, theta = (a + (b - a) * f for a, b in zip(self.start, self.end))
+        return x, y, z, theta
 
 
 PHASES = ("approach", "press", "shear", "return", "twist", "untwist", "retract")
@@ -59,20 +60,24 @@ def _move(index, phase, level, start, end, speed, captured) -> Step:
 
 
 def expand(p: Protocol) -> list[Step]:
-    """The paper's sequence (shared/REFERENCE.md §1), level by level.
+    """The paper's sequence (docs/reference.md, "The acquisition protocol"), level by level.
 
     Raises ConfigError naming the protocol's file and key when the expansion would pass
     MAX_LEVELS or MAX_STEPS; it is counted before anything is built.
     """
     n_levels = round(p.max_depth_mm / p.depth_step_mm)
     if n_levels > MAX_LEVELS:
-        raise ConfigError(p.path, "motion.depth_step_mm",
-                          f"max_depth_mm / depth_step_mm = {p.max_depth_mm} / {p.depth_step_mm} is {n_levels} levels; "
-                          f"the planner's cap is {MAX_LEVELS} (a level is stored as int8)")
+        raise ConfigError(
+            p.path,
+            "motion.depth_step_mm",
+            f"max_depth_mm / depth_step_mm = {p.max_depth_mm} / {p.depth_step_mm} is {n_levels} levels; "
+            f"the planner's cap is {MAX_LEVELS} (a level is stored as int8)",
+        )
     per_level = 1 + (6 if p.shear_mm > 0 else 0) + (2 if p.twist_deg > 0 else 0)
     if 2 + n_levels * per_level > MAX_STEPS:
-        raise ConfigError(p.path, "motion.depth_step_mm",
-                          f"{2 + n_levels * per_level} steps; the planner's cap is {MAX_STEPS}")
+        raise ConfigError(
+            p.path, "motion.depth_step_mm", f"{2 + n_levels * per_level} steps; the planner's cap is {MAX_STEPS}"
+        )
     steps: list[Step] = []
     s, v = p.shear_mm, p.speed_mm_s
     pose = (0.0, 0.0, p.approach_mm, 0.0)
@@ -112,9 +117,13 @@ class Plan:
         plan = cls(protocol, expand(protocol))
         frames = plan.frame_count
         if frames > MAX_FRAMES:
-            raise ConfigError(protocol.path, "capture.rate_hz",
-                              f"{frames} frames ({plan.captured_duration_s:.0f} s captured at {protocol.capture_hz:g} Hz); "
-                              f"the planner's cap is {MAX_FRAMES}: raise motion.speed_mm_s or lower capture.rate_hz")
+            raise ConfigError(
+                protocol.path,
+                "capture.rate_hz",
+                f"{frames} frames ({plan.captured_duration_s:.0f} s captured at "
+                f"{protocol.capture_hz:g} Hz); "
+                f"the planner's cap is {MAX_FRAMES}: raise motion.speed_mm_s or lower capture.rate_hz",
+            )
         return plan
 
     @property

@@ -9,11 +9,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-from common.table import Table, toml_table
 from common.errors import ConfigError
+from common.sensors import SENSOR_KINDS
+from common.table import Table, toml_table
 
 LIBRARY = Path(__file__).parent / "library"
-SENSOR_KINDS = ("rgb", "rgb_markers", "white_markers")
 MAX_DEPTH_MM = 10.0  # see parse_protocol
 
 
@@ -35,6 +35,11 @@ class Protocol:
     approach_speed_mm_s: float  # to and from the start, not captured
     capture_hz: float
 
+    def same_motion(self, other: "Protocol") -> bool:
+        """Every setting equal (file path, text and comments aside): what ``--resume`` needs."""
+        skip = ("path", "text", "description")
+        return all(getattr(self, f) == getattr(other, f) for f in self.__dataclass_fields__ if f not in skip)
+
     @property
     def levels(self) -> list[float]:
         n = round(self.max_depth_mm / self.depth_step_mm)
@@ -49,7 +54,8 @@ def parse_protocol(text: str, path: str = "<string>") -> Protocol:
     from objects.indenters import INDENTERS
 
     p = Protocol(
-        path=path, text=text,
+        path=path,
+        text=text,
         name=meta.get("name", str),
         description=meta.get("description", str, ""),
         object=meta.get("object", str, choices=tuple(INDENTERS)),
@@ -77,8 +83,11 @@ def parse_protocol(text: str, path: str = "<string>") -> Protocol:
     top.done()
     levels = p.max_depth_mm / p.depth_step_mm
     if abs(levels - round(levels)) > 1e-6:
-        raise ConfigError(path, "motion.max_depth_mm",
-                          f"must be a whole number of depth steps ({p.depth_step_mm} mm), got {p.max_depth_mm}")
+        raise ConfigError(
+            path,
+            "motion.max_depth_mm",
+            f"must be a whole number of depth steps ({p.depth_step_mm} mm), got {p.max_depth_mm}",
+        )
     return p
 
 
@@ -98,8 +107,11 @@ def apply_settings(text: str, settings: list[str], path: str) -> str:
         name, sep, value = setting.partition("=")
         section, dot, key = name.strip().partition(".")
         if not sep or not dot or not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", key) or not section:
-            raise ConfigError(path, name.strip() or "-", f"--set {setting!r}: expected section.key=value, "
-                                                         "such as motion.speed_mm_s=0.1")
+            raise ConfigError(
+                path,
+                name.strip() or "-",
+                f"--set {setting!r}: expected section.key=value, such as motion.speed_mm_s=0.1",
+            )
         value = value.strip()
         try:
             parsed = tomllib.loads(f"v = {value}")
@@ -108,7 +120,9 @@ def apply_settings(text: str, settings: list[str], path: str) -> str:
         else:
             # one value on one line: a newline would let a --set add keys or whole tables
             if "\n" in value or "\r" in value or set(parsed) != {"v"}:
-                raise ConfigError(path, name.strip(), f"--set {setting!r}: the value must be one TOML value on one line")
+                raise ConfigError(
+                    path, name.strip(), f"--set {setting!r}: the value must be one TOML value on one line"
+                )
         entry = f"{key} = {value}  # set on the command line"
         in_section, done, header = False, False, None
         for i, line in enumerate(lines):
@@ -134,8 +148,11 @@ def load_protocol(name_or_path: str | Path, settings: list[str] | None = None) -
     if candidate.suffix != ".toml":
         candidate = LIBRARY / f"{name_or_path}.toml"
         if not candidate.exists():
-            raise ConfigError(str(name_or_path), "-",
-                              f"no such protocol; the library has: {', '.join(protocol_names())} (or pass a .toml path)")
+            raise ConfigError(
+                str(name_or_path),
+                "-",
+                f"no such protocol; the library has: {', '.join(protocol_names())} (or pass a .toml path)",
+            )
     try:
         text = candidate.read_text()
     except FileNotFoundError as exc:

@@ -32,18 +32,29 @@ def _descend_until_touch(m, z_floor: float, speed: float, threshold_N: float) ->
             m.stop()
             return rig.axes["z"].position(), fz
         if not m.monitor(("z",), guard, "contact search"):
-            raise RigError(f"no contact down to z = {z_floor:.3f} mm (|Fz| stayed below {threshold_N} N); "
-                           "start lower or allow more travel")
+            raise RigError(
+                f"no contact down to z = {z_floor:.3f} mm (|Fz| stayed below {threshold_N} N); "
+                "start lower or allow more travel"
+            )
         rig.clock.sleep(rig.config.safety.poll_s)
 
 
-def find_contact(rig, *, threshold_N: float = 0.05, speed_mm_s: float = 0.5, max_travel_mm: float = 10.0,
-                 backoff_mm: float = 0.5, on_start: Callable[[str], None] | None = None) -> ContactFound:
+def find_contact(
+    rig,
+    *,
+    threshold_N: float = 0.05,
+    speed_mm_s: float = 0.5,
+    max_travel_mm: float = 10.0,
+    backoff_mm: float = 0.5,
+    on_start: Callable[[str], None] | None = None,
+) -> ContactFound:
     """Search downwards from the present z (which must be clear of the gel), in one motion
     session: any error or signal stops z and lifts it clear of the gel."""
     if not all(math.isfinite(v) and v > 0 for v in (threshold_N, speed_mm_s, max_travel_mm, backoff_mm)):
-        raise RigError(f"threshold ({threshold_N} N), speed ({speed_mm_s} mm/s), travel ({max_travel_mm} mm) "
-                       f"and backoff ({backoff_mm} mm) must be finite and > 0")
+        raise RigError(
+            f"threshold ({threshold_N} N), speed ({speed_mm_s} mm/s), travel ({max_travel_mm} mm) "
+            f"and backoff ({backoff_mm} mm) must be finite and > 0"
+        )
     with rig.motion("contact search", on_start=on_start) as m:
         z_start = rig.axes["z"].position()
         low = rig.config.axes["z"].travel[0]

@@ -71,9 +71,7 @@ class ForceLimitExceeded(SafetyError):
 
     def __init__(self, component: str, value: float, limit: float, unit: str):
         self.component, self.value, self.limit = component, value, limit
-        super().__init__(
-            f"{component} = {value:.3f} {unit} exceeds the limit ±{limit:.3f} {unit}; all axes stopped"
-        )
+        super().__init__(f"{component} = {value:.3f} {unit} exceeds the limit ±{limit:.3f} {unit}; all axes stopped")
 
 
 class NotBuiltYet(RigError):

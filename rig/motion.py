@@ -25,12 +25,14 @@ import logging
 import signal
 import threading
 from dataclasses import dataclass, field
-from typing import Callable
+from types import FrameType
+from typing import Any, Callable, Literal
 
 import numpy as np
 
 from rig.errors import DeviceFault, DeviceTimeout, ForceLimitExceeded, RigError, SafetyError
 from rig.safety import ForceGuard
+from rig.types import WrenchGuard
 
 log = logging.getLogger("rig.motion")
 
@@ -79,7 +81,7 @@ class SignalsAsExceptions:
     in ``held``. The previous handlers come back on exit."""
 
     def __init__(self):
-        self._previous: dict[int, object] = {}
+        self._previous: dict[int, Callable[[int, FrameType | None], Any] | int | None] = {}
         self.holding = False
         self.held: str | None = None
 
@@ -124,8 +126,15 @@ class Motion:
     error lift z to there instead of searching for release.
     """
 
-    def __init__(self, rig, what: str, *, on_start: Callable[[str], None] | None = None,
-                 on_stop: Callable[[StopReport], None] | None = None, retract_to_z: float | None = None):
+    def __init__(
+        self,
+        rig,
+        what: str,
+        *,
+        on_start: Callable[[str], None] | None = None,
+        on_stop: Callable[[StopReport], None] | None = None,
+        retract_to_z: float | None = None,
+    ):
         self.rig = rig
         self.what = what
         self.on_start = on_start
@@ -149,8 +158,10 @@ class Motion:
         rig.require_armed(())
         limits = rig.guard.limits
         if not np.all(np.isfinite(limits)) or np.any(limits <= 0):
-            raise SafetyError(f"refusing to move: force/torque limits {limits.tolist()} are not all finite and > 0 "
-                              f"(config {rig.config.path} [safety])")
+            raise SafetyError(
+                f"refusing to move: force/torque limits {limits.tolist()} are not all finite and > 0 "
+                f"(config {rig.config.path} [safety])"
+            )
         self._signals.__enter__()
         try:
             self._entry_fz_N = rig.gauge.read_fresh().fz_N  # the gauge answers before anything moves
@@ -162,7 +173,7 @@ class Motion:
         self._state = "open"
         return self
 
-    def __exit__(self, exc_type, exc, tb) -> bool:
+    def __exit__(self, exc_type, exc, tb) -> Literal[False]:
         self._signals.holding = True  # a second signal must not cut the stop sequence short
         self._state = "closing"
         try:
@@ -261,8 +272,9 @@ class Motion:
     # -- moving ---------------------------------------------------------------------------
     def _require_open(self) -> None:
         if self._state not in ("open", "closing"):
-            raise SafetyError(f"motion session {self.what!r} is not open: the rig moves only inside "
-                              "`with rig.motion(...) as m:`")
+            raise SafetyError(
+                f"motion session {self.what!r} is not open: the rig moves only inside `with rig.motion(...) as m:`"
+            )
 
     def start_move(self, targets: dict[str, float], speed: float | dict[str, float] | None = None) -> ForceGuard:
         """Check, then start moving the axes to ``targets``; returns the guard to monitor with.
@@ -285,8 +297,11 @@ class Motion:
         self._idle_since = None
         if self.on_start is not None and self._state == "open":
             cfg = self.rig.config.axes
-            self.on_start("; ".join(f"{n}: moving to {t:.4f} {cfg[n].unit} at {speeds[n]:g} {cfg[n].unit}/s"
-                                    for n, t in targets.items()))
+            self.on_start(
+                "; ".join(
+                    f"{n}: moving to {t:.4f} {cfg[n].unit} at {speeds[n]:g} {cfg[n].unit}/s" for n, t in targets.items()
+                )
+            )
         return guard
 
     def _guard_for(self, targets: dict[str, float]) -> ForceGuard:
@@ -302,7 +317,7 @@ class Motion:
                 raise
             return self.rig.guard.relaxed_to(wrench)
 
-    def monitor(self, names, guard: ForceGuard | None = None, what: str | None = None) -> set[str]:
+    def monitor(self, names, guard: WrenchGuard | None = None, what: str | None = None) -> set[str]:
         """One safety check: the wrench against the limits, the axes for faults.
 
         Returns the axes still moving; ``rig.last_status`` keeps what each reported.
@@ -338,11 +353,11 @@ class Motion:
         """Every started axis seen idle and a wrench measured after that within the limits."""
         return not self._moving and self._idle_since is None
 
-    def settle(self, names, guard: ForceGuard | None = None, *, timeout_s: float = 120.0) -> None:
+    def settle(self, names, guard: WrenchGuard | None = None, *, timeout_s: float = 120.0) -> None:
         """Monitor until ``names`` are idle and a wrench measured after that has passed."""
         self._wait(tuple(names), self.rig.clock.now() + timeout_s, self.what, guard)
 
-    def _wait(self, names: tuple[str, ...], deadline: float, what: str, guard: ForceGuard | None = None) -> None:
+    def _wait(self, names: tuple[str, ...], deadline: float, what: str, guard: WrenchGuard | None = None) -> None:
         """Poll until settled. Any error stops every axis before it propagates: a caller
         may catch a refused step (interactive jogging) and go on inside the session."""
         polls = 0
@@ -356,8 +371,13 @@ class Motion:
             self.rig.stop_all()
             raise
 
-    def move(self, targets: dict[str, float], speed: float | dict[str, float] | None = None,
-             *, timeout_s: float | None = None) -> dict[str, float]:
+    def move(
+        self,
+        targets: dict[str, float],
+        speed: float | dict[str, float] | None = None,
+        *,
+        timeout_s: float | None = None,
+    ) -> dict[str, float]:
         """Move the given axes together to absolute ``targets``; returns the final positions.
 
         Every target and speed is checked before anything moves (SoftLimitError,
@@ -377,13 +397,18 @@ class Motion:
             cfg = rig.config.axes[name]
             if abs(final[name] - target) > rig.tolerance(name):
                 rig.last_targets.pop(name, None)
-                raise DeviceFault(rig.axes[name].label, f"move to {target}", final[name],
-                                  f"stopped at {final[name]:.5f} {cfg.unit}, not at the target {target:.5f} {cfg.unit}")
+                raise DeviceFault(
+                    rig.axes[name].label,
+                    f"move to {target}",
+                    final[name],
+                    f"stopped at {final[name]:.5f} {cfg.unit}, not at the target {target:.5f} {cfg.unit}",
+                )
             rig.last_targets[name] = target
         return final
 
-    def jog(self, axis: str, *, step: float | None = None, to: float | None = None,
-            speed: float | None = None) -> float:
+    def jog(
+        self, axis: str, *, step: float | None = None, to: float | None = None, speed: float | None = None
+    ) -> float:
         """Move one axis by ``step`` or to ``to`` (mm or deg); returns where it ended."""
         if (step is None) == (to is None):
             raise RigError("jog needs exactly one of step or to")
@@ -415,7 +440,9 @@ class Motion:
             self._wait((name,), rig.clock.now() + timeout_s, "home", self._guard)
             status = rig.axes[name].status()
             if not status.homed:
-                raise DeviceFault(rig.axes[name].label, "home", status, "homing finished but the axis is not referenced")
+                raise DeviceFault(
+                    rig.axes[name].label, "home", status, "homing finished but the axis is not referenced"
+                )
 
     def stop(self) -> None:
         """Stop every axis now (a contact search stops at the touch)."""

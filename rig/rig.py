@@ -8,7 +8,6 @@ and stops everything on any way out.
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from rig.clock import Clock, SystemClock
@@ -16,7 +15,7 @@ from rig.config import RigConfig
 from rig.errors import DeviceError, RigError, SafetyError
 from rig.factory import PortPool, open_axis, open_camera, open_gauge
 from rig.safety import ForceGuard, check_speed, check_target
-from rig.types import AxisStatus, Wrench
+from rig.types import Axis, AxisStatus, Camera, ForceGauge, RigStatus
 
 if TYPE_CHECKING:
     from rig.motion import Motion
@@ -24,15 +23,17 @@ if TYPE_CHECKING:
 log = logging.getLogger("rig")
 
 
-@dataclass
-class RigStatus:
-    axes: dict[str, AxisStatus]
-    wrench: Wrench | None
-
-
 class Rig:
-    def __init__(self, config: RigConfig, clock: Clock, *, axes: dict, gauge=None, camera=None,
-                 pool: PortPool | None = None):
+    def __init__(
+        self,
+        config: RigConfig,
+        clock: Clock,
+        *,
+        axes: dict[str, Axis],
+        gauge: ForceGauge | None = None,
+        camera: Camera | None = None,
+        pool: PortPool | None = None,
+    ):
         self.config = config
         self.clock = clock
         self.axes = axes
@@ -46,17 +47,27 @@ class Rig:
         self.motion_session: Motion | None = None  # the open motion session, at most one
 
     @classmethod
-    def open(cls, config: RigConfig, clock: Clock | None = None, *, axes: tuple[str, ...] | None = None,
-             gauge: bool = True, camera: bool = False, sim=None) -> "Rig":
+    def open(
+        cls,
+        config: RigConfig,
+        clock: Clock | None = None,
+        *,
+        axes: tuple[str, ...] | None = None,
+        gauge: bool = True,
+        camera: bool = False,
+        sim=None,
+    ) -> "Rig":
         """Open only the devices asked for (``axes=None``: all configured axes)."""
         clock = clock or SystemClock()
         names = tuple(config.axes) if axes is None else axes
         for name in names:
             if name not in config.axes:
-                raise RigError(f"{config.path}: axis {name!r} is not configured (configured: {', '.join(config.axes) or 'none'})")
+                raise RigError(
+                    f"{config.path}: axis {name!r} is not configured (configured: {', '.join(config.axes) or 'none'})"
+                )
         pool = PortPool()
         opened_gauge = opened_camera = None
-        opened_axes = {}
+        opened_axes: dict[str, Axis] = {}
         try:
             for name in names:
                 opened_axes[name] = open_axis(config.axes[name], pool)
@@ -78,8 +89,10 @@ class Rig:
         return {name: axis.position() for name, axis in self.axes.items()}
 
     def status(self) -> RigStatus:
-        return RigStatus(axes={n: a.status() for n, a in self.axes.items()},
-                         wrench=self.gauge.read() if self.gauge is not None else None)
+        return RigStatus(
+            axes={n: a.status() for n, a in self.axes.items()},
+            wrench=self.gauge.read() if self.gauge is not None else None,
+        )
 
     def tare(self, n_samples: int = 20):
         if self.gauge is None:
@@ -98,20 +111,27 @@ class Rig:
 
     def require_armed(self, names) -> None:
         if self.gauge is None or self.guard is None:
-            raise SafetyError("refusing to move: no force gauge with limits is armed "
-                              f"(config {self.config.path} needs [gauge] and [safety])")
+            raise SafetyError(
+                "refusing to move: no force gauge with limits is armed "
+                f"(config {self.config.path} needs [gauge] and [safety])"
+            )
         for name in names:
             if name not in self.axes:
                 raise RigError(f"axis {name!r} is not open")
 
-    def check_targets(self, targets: dict[str, float], speed: float | dict[str, float] | None = None) -> dict[str, float]:
+    def check_targets(
+        self, targets: dict[str, float], speed: float | dict[str, float] | None = None
+    ) -> dict[str, float]:
         """Soft-limit and speed checks for a move; returns the per-axis speeds. Moves nothing."""
         self.require_armed(targets)
         speeds = {}
         for name, target in targets.items():
             cfg = self.config.axes[name]
             check_target(cfg, target)
-            s = speed.get(name, cfg.jog_speed) if isinstance(speed, dict) else (cfg.jog_speed if speed is None else speed)
+            if isinstance(speed, dict):
+                s = speed.get(name, cfg.jog_speed)
+            else:
+                s = cfg.jog_speed if speed is None else speed
             check_speed(cfg, s)
             speeds[name] = s
         return speeds

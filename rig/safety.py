@@ -18,8 +18,10 @@ def check_target(cfg: AxisConfig, target: float) -> None:
 
 def check_speed(cfg: AxisConfig, speed: float) -> None:
     if not np.isfinite(speed) or not 0 < speed <= cfg.max_speed:
-        raise SafetyError(f"axis {cfg.name}: speed {speed} {cfg.unit}/s is outside (0, {cfg.max_speed}] {cfg.unit}/s; "
-                          "nothing was moved")
+        raise SafetyError(
+            f"axis {cfg.name}: speed {speed} {cfg.unit}/s is outside (0, {cfg.max_speed}] {cfg.unit}/s; "
+            "nothing was moved"
+        )
 
 
 class ForceGuard:

@@ -52,8 +52,14 @@ def gel_separation(h_mm: np.ndarray, depth_mm: float, thickness_mm: float) -> np
     return np.maximum(h_mm, overlap_mm) if overlap_mm > 0 else h_mm
 
 
-def backing_load(h_mm: np.ndarray, X_mm: np.ndarray, Y_mm: np.ndarray, overlap_mm: float, cell_mm2: float,
-                 e_star_MPa: float = WINDOW_E_STAR_MPa) -> BackingLoad:
+def backing_load(
+    h_mm: np.ndarray,
+    X_mm: np.ndarray,
+    Y_mm: np.ndarray,
+    overlap_mm: float,
+    cell_mm2: float,
+    e_star_MPa: float = WINDOW_E_STAR_MPa,
+) -> BackingLoad:
     """Load on the window for the face ``h_mm`` (on the pad grid) past it by ``overlap_mm``."""
     if not overlap_mm > 0:
         return NO_BACKING

@@ -83,7 +83,7 @@ def find_contact(background: np.ndarray, image: np.ndarray) -> Contact:
     n, labels, stats, centroids = cv2.connectedComponentsWithStats(mask)
     k = 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))
     weight = np.where(labels == k, diff, 0.0)
-    ys, xs = np.mgrid[0:diff.shape[0], 0:diff.shape[1]]
+    ys, xs = np.mgrid[0 : diff.shape[0], 0 : diff.shape[1]]
     cx, cy = float((weight * xs).sum() / weight.sum()), float((weight * ys).sum() / weight.sum())
     return Contact(cx, cy, RADIUS_OF_REGION * math.sqrt(stats[k, cv2.CC_STAT_AREA] / math.pi))
 
@@ -114,8 +114,9 @@ def _local(contact: Contact, win: tuple[slice, slice]) -> Contact:
     return Contact(contact.centre_x_px - win[1].start, contact.centre_y_px - win[0].start, contact.radius_px)
 
 
-def render_press(light: LightModel, background: np.ndarray, contact: Contact, ball_radius_mm: float,
-                 mm_per_px: float) -> np.ndarray:
+def render_press(
+    light: LightModel, background: np.ndarray, contact: Contact, ball_radius_mm: float, mm_per_px: float
+) -> np.ndarray:
     """(H, W, 3) float frame of a ball press rendered over ``background`` (no noise, no bound)."""
     out = background.astype(np.float32).copy()
     win = _window(contact, background.shape[:2], 4.0, int(4 * light.blur_mm / mm_per_px) + 4)
@@ -137,23 +138,30 @@ def fit_light(background, presses, contacts, mm_per_px, blur_mm, shading="multip
     Per channel: min ‖A t − b‖² + λ‖L t‖² (L the grid Laplacian: normals the presses never
     showed get a smooth continuation), with the flat normal's entry held at 0.
     """
-    reference = tuple(float(v) for v in background.reshape(-1, 3).mean(axis=0))
+    mean_bgr = background.reshape(-1, 3).mean(axis=0)
+    reference = (float(mean_bgr[0]), float(mean_bgr[1]), float(mean_bgr[2]))
     probe = LightModel(np.zeros((3, bins, bins), np.float32), float(blur_mm), shading, reference)
-    idx, w, scale, target = [], [], [], []
+    idx_parts: list[np.ndarray] = []
+    w_parts: list[np.ndarray] = []
+    scale_parts: list[np.ndarray] = []
+    target_parts: list[np.ndarray] = []
     for press, contact in zip(presses, contacts):
         win = _window(contact, background.shape[:2], FIT_RADII, int(4 * blur_mm / mm_per_px) + 4)
         local = _local(contact, win)
         bg = background[win].astype(np.float32)
         z = ball_height_mm(bg.shape[:2], local, press.ball_radius_mm, mm_per_px)
-        ys, xs = np.mgrid[0:bg.shape[0], 0:bg.shape[1]]
+        ys, xs = np.mgrid[0 : bg.shape[0], 0 : bg.shape[1]]
         inside = np.hypot(xs - local.centre_x_px, ys - local.centre_y_px) < FIT_RADII * contact.radius_px
         i, wt = normal_lookup(*probe.slopes(z, mm_per_px), bins)
-        idx.append(i[inside])
-        w.append(wt[inside])
-        scale.append(bg[inside] / np.asarray(reference, np.float32) if shading == "multiplicative"
-                     else np.ones((int(inside.sum()), 3), np.float32))
-        target.append((press.image[win].astype(np.float32) - bg)[inside])
-    idx, w, scale, target = (np.concatenate(x) for x in (idx, w, scale, target))
+        idx_parts.append(i[inside])
+        w_parts.append(wt[inside])
+        scale_parts.append(
+            bg[inside] / np.asarray(reference, np.float32)
+            if shading == "multiplicative"
+            else np.ones((int(inside.sum()), 3), np.float32)
+        )
+        target_parts.append((press.image[win].astype(np.float32) - bg)[inside])
+    idx, w, scale, target = (np.concatenate(x) for x in (idx_parts, w_parts, scale_parts, target_parts))
     n = len(target)
     rows = np.repeat(np.arange(n), 4)
     lap = _laplacian(bins)
@@ -162,7 +170,7 @@ def fit_light(background, presses, contacts, mm_per_px, blur_mm, shading="multip
     table = np.zeros((3, bins * bins))
     sq_err = 0.0
     for ch in range(3):
-        A = sp.csr_matrix(((w * scale[:, ch:ch + 1]).ravel(), (rows, idx.ravel())), shape=(n, bins * bins))[:, keep]
+        A = sp.csr_matrix(((w * scale[:, ch : ch + 1]).ravel(), (rows, idx.ravel())), shape=(n, bins * bins))[:, keep]
         L = lap[:, keep]
         M = (A.T @ A + SMOOTHING * n / 1000.0 * (L.T @ L)).tocsc()
         t = spsolve(M, A.T @ target[:, ch])
@@ -177,8 +185,9 @@ def _best_light(background, presses, contacts, mm_per_px, shading, blurs_mm):
     return min(fits, key=lambda fit: fit[1])[0]
 
 
-def refine_contact(light: LightModel, background: np.ndarray, press: Press, contact: Contact,
-                   mm_per_px: float) -> Contact:
+def refine_contact(
+    light: LightModel, background: np.ndarray, press: Press, contact: Contact, mm_per_px: float
+) -> Contact:
     """The contact near ``contact`` whose rendering best matches the press under ``light``
     (Nelder–Mead on centre and radius, mean absolute error)."""
     win = _window(contact, background.shape[:2], FIT_RADII + 1, int(4 * light.blur_mm / mm_per_px) + 8)
@@ -189,8 +198,12 @@ def refine_contact(light: LightModel, background: np.ndarray, press: Press, cont
         c = Contact(p[0] - x0, p[1] - y0, max(p[2], 2.0))
         return float(np.mean(np.abs(render_press(light, bg, c, press.ball_radius_mm, mm_per_px) - real)))
 
-    res = minimize(cost, [contact.centre_x_px, contact.centre_y_px, contact.radius_px], method="Nelder-Mead",
-                   options={"xatol": 0.2, "fatol": 1e-3, "maxiter": 100})
+    res = minimize(
+        cost,
+        [contact.centre_x_px, contact.centre_y_px, contact.radius_px],
+        method="Nelder-Mead",
+        options={"xatol": 0.2, "fatol": 1e-3, "maxiter": 100},
+    )
     return Contact(float(res.x[0]), float(res.x[1]), float(max(res.x[2], 2.0)))
 
 
@@ -209,31 +222,43 @@ def _check(background: np.ndarray, presses: list[Press], mm_per_px: float) -> No
             raise CalibrationError(f"{name}: ball_radius_mm must be a finite number > 0, got {p.ball_radius_mm}")
 
 
-def fit_optics(background: np.ndarray, presses: list[Press], mm_per_px: float, *, shading: str = "multiplicative",
-               blurs_mm: tuple[float, ...] = BLURS_MM, refine: bool = True) -> CalibrationResult:
+def fit_optics(
+    background: np.ndarray,
+    presses: list[Press],
+    mm_per_px: float,
+    *,
+    shading: str = "multiplicative",
+    blurs_mm: tuple[float, ...] = BLURS_MM,
+    refine: bool = True,
+) -> CalibrationResult:
     """Fit a LightModel to ball presses over a no-contact ``background`` (BGR, H×W×3).
 
     Contacts not given are found automatically, then refined by rendering (``refine``).
     Raises CalibrationError (one line naming the press) for unusable input.
     """
     _check(background, presses, mm_per_px)
-    contacts = []
-    for i, p in enumerate(presses):
-        found = None if (p.centre_px and p.radius_px) else find_contact(background, p.image)
-        if found is not None and p.depth_mm is not None and p.radius_px is None:
+    contacts: list[Contact] = []
+    for p in presses:
+        if p.centre_px and p.radius_px:  # given in full: nothing to find
+            contacts.append(Contact(float(p.centre_px[0]), float(p.centre_px[1]), float(p.radius_px)))
+            continue
+        found = find_contact(background, p.image)
+        if p.depth_mm is not None and p.radius_px is None:
             found = Contact(found.centre_x_px, found.centre_y_px, math.sqrt(p.ball_radius_mm * p.depth_mm) / mm_per_px)
         cx, cy = p.centre_px or (found.centre_x_px, found.centre_y_px)
         contacts.append(Contact(float(cx), float(cy), float(p.radius_px or found.radius_px)))
     light = _best_light(background, presses, contacts, mm_per_px, shading, blurs_mm)
     if refine:
         for _ in range(2):  # contacts under the current light, then the light for those contacts
-            contacts = [c if (p.centre_px and p.radius_px) else refine_contact(light, background, p, c, mm_per_px)
-                        for p, c in zip(presses, contacts)]
+            contacts = [
+                c if (p.centre_px and p.radius_px) else refine_contact(light, background, p, c, mm_per_px)
+                for p, c in zip(presses, contacts)
+            ]
             light = _best_light(background, presses, contacts, mm_per_px, shading, blurs_mm)
     result = CalibrationResult(light, contacts)
     for p, c in zip(presses, contacts):
         err = np.abs(render_press(light, background, c, p.ball_radius_mm, mm_per_px) - p.image.astype(np.float32))
-        ys, xs = np.mgrid[0:err.shape[0], 0:err.shape[1]]
+        ys, xs = np.mgrid[0 : err.shape[0], 0 : err.shape[1]]
         near = np.hypot(xs - c.centre_x_px, ys - c.centre_y_px) < 1.5 * c.radius_px
         result.press_mae.append(float(err.mean()))
         result.press_mae_near.append(float(err[near].mean()))

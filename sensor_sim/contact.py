@@ -18,10 +18,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from objects.indenters import Indenter
 from objects.pose import Pose
 from sensor_sim.backing import NO_BACKING, BackingLoad, backing_load, gel_separation
 from sensor_sim.elastomer import Elastomer, PhysicsInputError
-from objects.indenters import Indenter
 from sensor_sim.kernels import kernels_for
 from sensor_sim.normal_contact import NormalSolution, solve_normal
 from sensor_sim.tangential_contact import TangentialSolution, solve_tangential
@@ -93,8 +93,15 @@ def _round_up(n: int, multiple: int = 8) -> int:
 
 
 class TactileContact:
-    def __init__(self, indenter: Indenter, gel: Elastomer | None = None,
-                 geometry: SensorGeometry | None = None, *, tol: float = 1e-3, tangential_tol: float = 1e-4):
+    def __init__(
+        self,
+        indenter: Indenter,
+        gel: Elastomer | None = None,
+        geometry: SensorGeometry | None = None,
+        *,
+        tol: float = 1e-3,
+        tangential_tol: float = 1e-4,
+    ):
         self.indenter = indenter
         self.gel = gel or Elastomer()
         self.geometry = geometry or SensorGeometry()
@@ -118,9 +125,16 @@ class TactileContact:
             sl.append(slice(lo, lo + size))
         return sl[0], sl[1]
 
-    def solve(self, pose: Pose, *, shift_mm: tuple[float, float] = (0.0, 0.0), twist_rad: float = 0.0,
-              fields: frozenset[str] | set[str] = frozenset(), p0: np.ndarray | None = None,
-              q0=None) -> ContactResult:
+    def solve(
+        self,
+        pose: Pose,
+        *,
+        shift_mm: tuple[float, float] = (0.0, 0.0),
+        twist_rad: float = 0.0,
+        fields: frozenset[str] | set[str] = frozenset(),
+        p0: np.ndarray | None = None,
+        q0=None,
+    ) -> ContactResult:
         """Solve at ``pose`` with the tangential motion since contact began.
 
         ``fields``: any of "uz" (surface sink), "uxy" (tangential displacement).
@@ -158,9 +172,18 @@ class TactileContact:
         tangential = None
         if (shift_mm != (0.0, 0.0) or twist_rad != 0.0) and normal.force_N > 0:
             q_init = q0 if q0 is not None and q0[0].shape == hc.shape else None
-            tangential = solve_tangential(k, normal.pressure_MPa, Xc, Yc, mu=self.gel.friction, shift_mm=shift_mm,
-                                          twist_rad=twist_rad, center_mm=(pose.x_mm, pose.y_mm),
-                                          tol=self.tangential_tol, q0=q_init)
+            tangential = solve_tangential(
+                k,
+                normal.pressure_MPa,
+                Xc,
+                Yc,
+                mu=self.gel.friction,
+                shift_mm=shift_mm,
+                twist_rad=twist_rad,
+                center_mm=(pose.x_mm, pose.y_mm),
+                tol=self.tangential_tol,
+                q0=q_init,
+            )
         cell = dx * dx
         p = normal.pressure_MPa
         fz = normal.force_N + backing.force_N

@@ -187,10 +187,11 @@ class Kernels:
         # more on larger grids) asks for the float64 transforms (``precise=True``).
         self._normal_real = normal
         self.normal_hat = sfft.rfft2(normal).astype(np.complex64)
-        self._normal_hat64 = None
-        self._tangential_real = None
-        self._tangential_hat = None
-        self._tangential_hat64 = None
+        # Built on first use (most solves need neither the float64 nor the tangential kernels).
+        self._normal_hat64: np.ndarray | None = None
+        self._tangential_real: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+        self._tangential_hat: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+        self._tangential_hat64: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
 
     def _layer_term(self) -> np.ndarray:
         """Cell-averaged (3×3 sub-points) layer correction on the wrap-around layout."""
@@ -199,7 +200,8 @@ class Kernels:
         acc = np.zeros_like(X)
         for sy in sub:
             for sx in sub:
-                acc += layer_correction(np.hypot(X + sx * self.dx, Y + sy * self.dy), self.gel.thickness_mm, self.gel.nu)
+                r = np.hypot(X + sx * self.dx, Y + sy * self.dy)
+                acc += layer_correction(r, self.gel.thickness_mm, self.gel.nu)
         term = acc / 9 * self.dx * self.dy / (math.pi * self.gel.E_star_MPa)
         term[self.ny, :] = 0.0
         term[:, self.nx] = 0.0
@@ -222,32 +224,38 @@ class Kernels:
             kyy = c * ((1 - nu) * I1 + nu * self._Iyy)
             kxy = c * nu * self._Ixy
             if math.isfinite(self.gel.thickness_mm):
-                kxx, kyy, kxy = (k + d for k, d in zip((kxx, kyy, kxy), self._tangential_layer_term()))
+                dxx, dyy, dxy = self._tangential_layer_term()
+                kxx, kyy, kxy = kxx + dxx, kyy + dyy, kxy + dxy
             self._tangential_real = (kxx, kyy, kxy)
         return self._tangential_real
 
     @property
-    def tangential_hat(self):
+    def tangential_hat(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(Kxx, Kyy, Kxy) FFTs of Cerruti's kernel, with the layer correction, mm per MPa."""
         if self._tangential_hat is None:
-            self._tangential_hat = tuple(sfft.rfft2(k).astype(np.complex64) for k in self._tangential_kernels())
+            kxx, kyy, kxy = (sfft.rfft2(k).astype(np.complex64) for k in self._tangential_kernels())
+            self._tangential_hat = (kxx, kyy, kxy)
         return self._tangential_hat
 
     @property
-    def tangential_hat64(self):
+    def tangential_hat64(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``tangential_hat`` in double precision, built on first use."""
         if self._tangential_hat64 is None:
-            self._tangential_hat64 = tuple(sfft.rfft2(k) for k in self._tangential_kernels())
+            kxx, kyy, kxy = (sfft.rfft2(k) for k in self._tangential_kernels())
+            self._tangential_hat64 = (kxx, kyy, kxy)
         return self._tangential_hat64
 
-    def _tangential_layer_term(self):
+    def _tangential_layer_term(self) -> list[np.ndarray]:
+        """[Δxx, Δyy, Δxy]: the cell-averaged layer correction of Cerruti's kernel, mm per MPa."""
         X, Y = _offsets(self.ny, self.nx, self.dy, self.dx)
         sub = (np.arange(3) - 1) / 3
         acc = [np.zeros_like(X) for _ in range(3)]
         for sy in sub:
             for sx in sub:
-                for a, d in zip(acc, tangential_layer_correction(X + sx * self.dx, Y + sy * self.dy,
-                                                                 self.gel.thickness_mm, self.gel.nu)):
+                for a, d in zip(
+                    acc,
+                    tangential_layer_correction(X + sx * self.dx, Y + sy * self.dy, self.gel.thickness_mm, self.gel.nu),
+                ):
                     a += d
         scale = self.dx * self.dy / (9 * 2 * math.pi * self.gel.G_MPa)
         for a in acc:
@@ -266,8 +274,9 @@ class Kernels:
     def normal_displacement(self, p: np.ndarray, *, precise: bool = False) -> np.ndarray:
         return self.convolve(self.normal_hat64 if precise else self.normal_hat, p)
 
-    def tangential_displacement(self, qx: np.ndarray, qy: np.ndarray, *,
-                                precise: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    def tangential_displacement(
+        self, qx: np.ndarray, qy: np.ndarray, *, precise: bool = False
+    ) -> tuple[np.ndarray, np.ndarray]:
         kxx, kyy, kxy = self.tangential_hat64 if precise else self.tangential_hat
         dtype = np.float64 if precise else np.float32
         fx = sfft.rfft2(qx.astype(dtype, copy=False), s=self.shape, workers=1)

@@ -7,11 +7,13 @@ that turns mechanics fields into frames with them is ``sensor_sim.optics``.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import cast
 
 import cv2
 import numpy as np
 
-SENSOR_KINDS = ("rgb", "rgb_markers", "white_markers")
+from common.sensors import SENSOR_KINDS
+
 SHADINGS = ("multiplicative", "additive")
 # A camera's response flattens near its ends; frames stay in [1, 254] so a deep press
 # never shows clipped black or saturated colour. Values between the knees are untouched.
@@ -94,7 +96,11 @@ class LightModel:
 
     def slopes(self, z_mm: np.ndarray, mm_per_px: float) -> tuple[np.ndarray, np.ndarray]:
         """Blurred slopes (gx, gy) of the surface height ``z_mm`` (image axes)."""
-        gy, gx = np.gradient(z_mm.astype(np.float32), np.float32(mm_per_px))
+        gx: np.ndarray
+        gy: np.ndarray
+        # z_mm is (H, W); numpy's stubs only type np.gradient's result as a pair for a 2-D array type
+        z = cast("np.ndarray[tuple[int, int], np.dtype[np.float32]]", z_mm.astype(np.float32))
+        gy, gx = np.gradient(z, np.float32(mm_per_px))
         blur_px = self.blur_mm / mm_per_px
         if blur_px > 0:
             gx = cv2.GaussianBlur(gx, (0, 0), blur_px)

@@ -14,6 +14,7 @@ too stops early with ``converged=False`` instead of spending ``max_iter``.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -44,8 +45,15 @@ class NormalSolution:
         return self.pressure_MPa > 0
 
 
-def solve_normal(kernels: Kernels, h_mm: np.ndarray, depth_mm: float, *, tol: float = 1e-4,
-                 max_iter: int = 500, p0: np.ndarray | None = None) -> NormalSolution:
+def solve_normal(
+    kernels: Kernels,
+    h_mm: np.ndarray,
+    depth_mm: float,
+    *,
+    tol: float = 1e-4,
+    max_iter: int = 500,
+    p0: np.ndarray | None = None,
+) -> NormalSolution:
     """Solve the contact of separation ``h_mm`` pressed ``depth_mm`` into the gel.
 
     Stops at ``tol`` (converged), on a stall in float64 or at ``max_iter`` (not converged).
@@ -55,7 +63,7 @@ def solve_normal(kernels: Kernels, h_mm: np.ndarray, depth_mm: float, *, tol: fl
     if depth_mm <= 0 or not np.any(target > 0):
         zero = np.zeros_like(h_mm)
         return NormalSolution(zero, zero.copy(), 0.0, 0.0, 0, 0.0, True)
-    conv = kernels.normal_displacement
+    conv: Callable[[np.ndarray], np.ndarray] = kernels.normal_displacement  # float32 until a stall
     if p0 is None or not np.any(p0 > 0):
         # Scale the interference into a pressure that best matches it on the overlap.
         p = np.maximum(target, 0.0)
@@ -115,5 +123,6 @@ def solve_normal(kernels: Kernels, h_mm: np.ndarray, depth_mm: float, *, tol: fl
             mark, mark_at = residual, it
             u, t, delta, G_old = conv(p), np.zeros_like(p), 0.0, 1.0
     u = conv(p)
-    return NormalSolution(p, u, float(np.sum(p)) * cell, float(np.count_nonzero(p)) * cell, it, residual, converged,
-                          precise)
+    return NormalSolution(
+        p, u, float(np.sum(p)) * cell, float(np.count_nonzero(p)) * cell, it, residual, converged, precise
+    )

@@ -29,8 +29,15 @@ class Renderer:
     profile unless ``profile`` is given); ``background`` (any size, BGR) overrides it.
     """
 
-    def __init__(self, spec: OpticsSpec | None = None, geometry: SensorGeometry | None = None,
-                 background: np.ndarray | None = None, seed: int = 0, *, profile=None):
+    def __init__(
+        self,
+        spec: OpticsSpec | None = None,
+        geometry: SensorGeometry | None = None,
+        background: np.ndarray | None = None,
+        seed: int = 0,
+        *,
+        profile=None,
+    ):
         profile = profile or default_profile()
         self.spec = spec or OpticsSpec()
         self.geometry = geometry or SensorGeometry()
@@ -52,8 +59,11 @@ class Renderer:
         self._rng = np.random.default_rng(seed)
         # Sensor noise from a bank of precomputed fields, shifted at random per frame:
         # statistically the same per pixel, ~10x cheaper than fresh Gaussian draws.
-        self._noise = (self._rng.normal(0.0, self.spec.noise_std, (4, h, w, 3)).astype(np.float32)
-                       if self.spec.noise_std > 0 else None)
+        self._noise = (
+            self._rng.normal(0.0, self.spec.noise_std, (4, h, w, 3)).astype(np.float32)
+            if self.spec.noise_std > 0
+            else None
+        )
         pitch = self.spec.marker_pitch_mm
         n_x = int(self.geometry.width_mm / pitch)
         n_y = int(self.geometry.height_mm / pitch)
@@ -71,8 +81,9 @@ class Renderer:
         return frozenset({"uz", "uxy"}) if self.spec.has_markers else frozenset({"uz"})
 
     def _on_image(self, field: np.ndarray) -> np.ndarray:
-        return cv2.resize(field.astype(np.float32), (self.spec.width_px, self.spec.height_px),
-                          interpolation=cv2.INTER_CUBIC)
+        return cv2.resize(
+            field.astype(np.float32), (self.spec.width_px, self.spec.height_px), interpolation=cv2.INTER_CUBIC
+        )
 
     def slope_change(self, uz_mm: np.ndarray) -> np.ndarray:
         """(H, W, 3) colour change for the surface sink ``uz_mm`` (mechanics grid)."""
@@ -104,8 +115,9 @@ class Renderer:
         mask = np.zeros((h, w), np.float32)
         radius = int(round(self.spec.marker_radius_mm / self.mm_per_px * (1 << shift)))
         for c, r in centres_px:
-            cv2.circle(mask, (int(round(c * (1 << shift))), int(round(r * (1 << shift)))), radius, 1.0, -1,
-                       cv2.LINE_AA, shift)
+            cv2.circle(
+                mask, (int(round(c * (1 << shift))), int(round(r * (1 << shift)))), radius, 1.0, -1, cv2.LINE_AA, shift
+            )
         return cv2.GaussianBlur(mask, (0, 0), 0.6)
 
     def render(self, fields: dict[str, np.ndarray]) -> np.ndarray:

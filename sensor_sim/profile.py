@@ -51,16 +51,28 @@ class SensorProfile:
         return SensorGeometry(width_mm=self.width_px * self.mm_per_px, height_mm=self.height_px * self.mm_per_px)
 
     def optics_spec(self, kind: str = "rgb") -> OpticsSpec:
-        return OpticsSpec(kind=kind, height_px=self.height_px, width_px=self.width_px, noise_std=self.noise_std,
-                          marker_pitch_mm=self.marker_pitch_mm, marker_radius_mm=self.marker_radius_mm,
-                          marker_darkness=self.marker_darkness)
+        return OpticsSpec(
+            kind=kind,
+            height_px=self.height_px,
+            width_px=self.width_px,
+            noise_std=self.noise_std,
+            marker_pitch_mm=self.marker_pitch_mm,
+            marker_radius_mm=self.marker_radius_mm,
+            marker_darkness=self.marker_darkness,
+        )
 
 
 # (section, key, low, high): the ranges a profile's numbers must lie in.
 NUMBERS = (
-    ("sensor", "width_px", 16, 4096), ("sensor", "height_px", 16, 4096), ("sensor", "mm_per_px", 1e-4, 1.0),
-    ("sensor", "noise_std", 0.0, 50.0), ("gel", "thickness_mm", 0.05, 50.0), ("gel", "E_MPa", 1e-3, 1e3),
-    ("optics", "blur_mm", 0.0, 5.0), ("markers", "pitch_mm", 0.05, 10.0), ("markers", "radius_mm", 0.0, 5.0),
+    ("sensor", "width_px", 16, 4096),
+    ("sensor", "height_px", 16, 4096),
+    ("sensor", "mm_per_px", 1e-4, 1.0),
+    ("sensor", "noise_std", 0.0, 50.0),
+    ("gel", "thickness_mm", 0.05, 50.0),
+    ("gel", "E_MPa", 1e-3, 1e3),
+    ("optics", "blur_mm", 0.0, 5.0),
+    ("markers", "pitch_mm", 0.05, 10.0),
+    ("markers", "radius_mm", 0.0, 5.0),
     ("markers", "darkness", 0.0, 1.0),
 )
 
@@ -75,7 +87,12 @@ def _get(path: Path, data: dict, section: str, key: str):
 
 def _number(path: Path, data: dict, section: str, key: str, low: float, high: float) -> float:
     value = _get(path, data, section, key)
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or not low <= value <= high:
+    if (
+        isinstance(value, bool)
+        or not isinstance(value, (int, float))
+        or not math.isfinite(value)
+        or not low <= value <= high
+    ):
         raise ProfileError(f"{path}: [{section}] {key} must be a finite number in [{low:g}, {high:g}], got {value!r}")
     return value
 
@@ -111,11 +128,16 @@ def load_profile(path: str | Path) -> SensorProfile:
         raise ProfileError(f"{path}: [optics] shading must be one of {', '.join(SHADINGS)}, got {shading!r}")
     bins = _number(path, data, "optics", "table_bins", 3, 201)
     if not float(bins).is_integer() or bins % 2 == 0:
-        raise ProfileError(f"{path}: [optics] table_bins must be an odd whole number (the flat normal in the middle), got {bins!r}")
+        raise ProfileError(
+            f"{path}: [optics] table_bins must be an odd whole number (the flat normal in the middle), got {bins!r}"
+        )
     table = np.stack([_table(path, data, f"table_{c}", int(bins)) for c in "bgr"])
     reference = _get(path, data, "optics", "reference_bgr")
-    if (not isinstance(reference, list) or len(reference) != 3
-            or not all(isinstance(v, (int, float)) and math.isfinite(v) and 0 < v <= 255 for v in reference)):
+    if (
+        not isinstance(reference, list)
+        or len(reference) != 3
+        or not all(isinstance(v, (int, float)) and math.isfinite(v) and 0 < v <= 255 for v in reference)
+    ):
         raise ProfileError(f"{path}: [optics] reference_bgr must be 3 finite numbers in (0, 255], got {reference!r}")
     bg_name = _get(path, data, "sensor", "background")
     bg_path = path.parent / str(bg_name)
@@ -124,17 +146,31 @@ def load_profile(path: str | Path) -> SensorProfile:
         raise ProfileError(f"{path}: [sensor] background {bg_name!r}: no readable image at {bg_path}")
     aspect, bg_aspect = n["sensor.width_px"] / n["sensor.height_px"], background.shape[1] / background.shape[0]
     if abs(bg_aspect / aspect - 1) > 0.02:
-        raise ProfileError(f"{path}: [sensor] background {bg_name!r} is {background.shape[1]}x{background.shape[0]}, "
-                           f"not the frame's aspect ratio {int(n['sensor.width_px'])}x{int(n['sensor.height_px'])}")
-    light = LightModel(table.astype(np.float32), float(n["optics.blur_mm"]), shading,
-                       tuple(float(v) for v in reference))
+        raise ProfileError(
+            f"{path}: [sensor] background {bg_name!r} is {background.shape[1]}x{background.shape[0]}, "
+            f"not the frame's aspect ratio {int(n['sensor.width_px'])}x{int(n['sensor.height_px'])}"
+        )
+    light = LightModel(
+        table.astype(np.float32),
+        float(n["optics.blur_mm"]),
+        shading,
+        (float(reference[0]), float(reference[1]), float(reference[2])),
+    )
     return SensorProfile(
-        name=str(_get(path, data, "sensor", "name")), source=str(data["sensor"].get("source", "")),
-        width_px=int(n["sensor.width_px"]), height_px=int(n["sensor.height_px"]),
-        mm_per_px=float(n["sensor.mm_per_px"]), gel_thickness_mm=float(n["gel.thickness_mm"]),
-        gel_E_MPa=float(n["gel.E_MPa"]), noise_std=float(n["sensor.noise_std"]), light=light, background=background,
-        marker_pitch_mm=float(n["markers.pitch_mm"]), marker_radius_mm=float(n["markers.radius_mm"]),
-        marker_darkness=float(n["markers.darkness"]))
+        name=str(_get(path, data, "sensor", "name")),
+        source=str(data["sensor"].get("source", "")),
+        width_px=int(n["sensor.width_px"]),
+        height_px=int(n["sensor.height_px"]),
+        mm_per_px=float(n["sensor.mm_per_px"]),
+        gel_thickness_mm=float(n["gel.thickness_mm"]),
+        gel_E_MPa=float(n["gel.E_MPa"]),
+        noise_std=float(n["sensor.noise_std"]),
+        light=light,
+        background=background,
+        marker_pitch_mm=float(n["markers.pitch_mm"]),
+        marker_radius_mm=float(n["markers.radius_mm"]),
+        marker_darkness=float(n["markers.darkness"]),
+    )
 
 
 def _toml_rows(table: np.ndarray) -> str:

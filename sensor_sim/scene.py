@@ -27,9 +27,17 @@ class SceneFrame:
 
 
 class Scene:
-    def __init__(self, indenter: str = "sphere10mm", kind: str = "rgb", *, gel: Elastomer | None = None,
-                 geometry: SensorGeometry | None = None, optics: OpticsSpec | None = None,
-                 background: np.ndarray | None = None, seed: int = 0):
+    def __init__(
+        self,
+        indenter: str = "sphere10mm",
+        kind: str = "rgb",
+        *,
+        gel: Elastomer | None = None,
+        geometry: SensorGeometry | None = None,
+        optics: OpticsSpec | None = None,
+        background: np.ndarray | None = None,
+        seed: int = 0,
+    ):
         self.geometry = geometry or SensorGeometry()
         self.contact = ElastomerContact(indenter, gel, self.geometry)
         self.optics = optics or OpticsSpec(kind=kind)

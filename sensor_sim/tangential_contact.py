@@ -48,10 +48,20 @@ def _lipschitz(kernels: Kernels) -> float:
     return float(np.max(half_trace + np.sqrt(((kxx - kyy) / 2) ** 2 + kxy**2)))
 
 
-def solve_tangential(kernels: Kernels, p_MPa: np.ndarray, X: np.ndarray, Y: np.ndarray, *, mu: float,
-                     shift_mm: tuple[float, float] = (0.0, 0.0), twist_rad: float = 0.0,
-                     center_mm: tuple[float, float] = (0.0, 0.0), tol: float = 1e-4, max_iter: int = 2000,
-                     q0: tuple[np.ndarray, np.ndarray] | None = None) -> TangentialSolution:
+def solve_tangential(
+    kernels: Kernels,
+    p_MPa: np.ndarray,
+    X: np.ndarray,
+    Y: np.ndarray,
+    *,
+    mu: float,
+    shift_mm: tuple[float, float] = (0.0, 0.0),
+    twist_rad: float = 0.0,
+    center_mm: tuple[float, float] = (0.0, 0.0),
+    tol: float = 1e-4,
+    max_iter: int = 2000,
+    q0: tuple[np.ndarray, np.ndarray] | None = None,
+) -> TangentialSolution:
     """Traction for the imposed tangential motion; stops at ``tol`` (converged), on a
     stall in float64 or at ``max_iter`` (not converged)."""
     cell = kernels.dx * kernels.dy
@@ -62,8 +72,9 @@ def solve_tangential(kernels: Kernels, p_MPa: np.ndarray, X: np.ndarray, Y: np.n
     contact = p_MPa > 0
     zeros = np.zeros_like(p_MPa)
     if not contact.any() or mu == 0 or (not np.any(dxf[contact]) and not np.any(dyf[contact])):
-        return TangentialSolution(zeros, zeros.copy(), zeros.copy(), zeros.copy(), 0.0, 0.0, 0.0,
-                                  1.0 if contact.any() else 0.0, 0, 0.0, True)
+        return TangentialSolution(
+            zeros, zeros.copy(), zeros.copy(), zeros.copy(), 0.0, 0.0, 0.0, 1.0 if contact.any() else 0.0, 0, 0.0, True
+        )
     step = 1.0 / _lipschitz(kernels)
 
     def project(qx, qy):
@@ -108,5 +119,6 @@ def solve_tangential(kernels: Kernels, p_MPa: np.ndarray, X: np.ndarray, Y: np.n
     fx = float(np.sum(qx)) * cell
     fy = float(np.sum(qy)) * cell
     mz = float(np.sum((X - xc) * qy - (Y - yc) * qx)) * cell
-    return TangentialSolution(qx, qy, ux, uy, fx, fy, mz, float(sticking.sum()) / float(contact.sum()),
-                              it, residual, converged, precise)
+    return TangentialSolution(
+        qx, qy, ux, uy, fx, fy, mz, float(sticking.sum()) / float(contact.sum()), it, residual, converged, precise
+    )

@@ -19,24 +19,32 @@ import threading
 
 import numpy as np
 
+from objects.indenters import Indenter, get_indenter
 from objects.pose import Pose
 from sensor_sim.contact import ContactResult, SensorGeometry, TactileContact
 from sensor_sim.elastomer import Elastomer
-from objects.indenters import Indenter, get_indenter
 
 log = logging.getLogger(__name__)
 
 
 class ElastomerContact:
-    def __init__(self, indenter: Indenter | str = "sphere10mm", gel: Elastomer | None = None,
-                 geometry: SensorGeometry | None = None, *, quantum_mm: float = 0.5e-3, quantum_deg: float = 0.005,
-                 tol: float = 1e-3, tangential_tol: float = 1e-3):
+    def __init__(
+        self,
+        indenter: Indenter | str = "sphere10mm",
+        gel: Elastomer | None = None,
+        geometry: SensorGeometry | None = None,
+        *,
+        quantum_mm: float = 0.5e-3,
+        quantum_deg: float = 0.005,
+        tol: float = 1e-3,
+        tangential_tol: float = 1e-3,
+    ):
         indenter = get_indenter(indenter) if isinstance(indenter, str) else indenter
         # A live gauge needs low latency more than the last 0.1 % (see docs/simulator.md).
         self.solver = TactileContact(indenter, gel, geometry, tol=tol, tangential_tol=tangential_tol)
         self.quantum_mm, self.quantum_deg = quantum_mm, quantum_deg
         self._anchor: tuple[float, float, float] | None = None
-        self._cache_key = None
+        self._cache_key: tuple | None = None
         self._cache: ContactResult | None = None
         self._lock = threading.Lock()
         self.solves = 0
@@ -63,8 +71,13 @@ class ElastomerContact:
 
     def _key(self, pose: Pose) -> tuple:
         q, qd = self.quantum_mm, self.quantum_deg
-        return (round(pose.x_mm / q), round(pose.y_mm / q), round(pose.z_mm / q), round(pose.theta_deg / qd),
-                self._anchor)
+        return (
+            round(pose.x_mm / q),
+            round(pose.y_mm / q),
+            round(pose.z_mm / q),
+            round(pose.theta_deg / qd),
+            self._anchor,
+        )
 
     def solve(self, pose: Pose, fields=frozenset()) -> ContactResult:
         """Full result at ``pose`` (with the fields asked for), advancing the friction history."""
@@ -83,11 +96,17 @@ class ElastomerContact:
             if self._anchor is not None:
                 ax, ay, at = self._anchor
                 shift, twist = (pose.x_mm - ax, pose.y_mm - ay), math.radians(pose.theta_deg - at)
-            prev = self._cache if self._cache is not None and self._cache.normal is not None else None
+            # the last solve, if it had a contact, warm-starts this one
+            prev_n = self._cache.normal if self._cache is not None else None
+            prev_t = self._cache.tangential if self._cache is not None and prev_n is not None else None
             result = self.solver.solve(
-                pose, shift_mm=shift, twist_rad=twist, fields=fields,
-                p0=prev.normal.pressure_MPa if prev else None,
-                q0=(prev.tangential.qx_MPa, prev.tangential.qy_MPa) if prev and prev.tangential else None)
+                pose,
+                shift_mm=shift,
+                twist_rad=twist,
+                fields=fields,
+                p0=prev_n.pressure_MPa if prev_n is not None else None,
+                q0=(prev_t.qx_MPa, prev_t.qy_MPa) if prev_t is not None else None,
+            )
             self.solves += 1
             if not result.converged:
                 self._count_unconverged(pose, result)
@@ -99,11 +118,18 @@ class ElastomerContact:
     def _count_unconverged(self, pose: Pose, result: ContactResult) -> None:
         self._solver_warnings += 1
         if self._solver_warnings == 1:  # once per model: a gauge solves hundreds of times a second
-            log.warning("contact solve did not converge at %s (normal: %d iterations, residual %.2g; tangential: "
-                        "%d iterations, residual %.2g; tolerances %g / %g); further ones are only counted in "
-                        "solver_warnings", pose, result.normal_iterations, result.normal_residual,
-                        result.tangential_iterations, result.tangential_residual, self.solver.tol,
-                        self.solver.tangential_tol)
+            log.warning(
+                "contact solve did not converge at %s (normal: %d iterations, residual %.2g; tangential: "
+                "%d iterations, residual %.2g; tolerances %g / %g); further ones are only counted in "
+                "solver_warnings",
+                pose,
+                result.normal_iterations,
+                result.normal_residual,
+                result.tangential_iterations,
+                result.tangential_residual,
+                self.solver.tol,
+                self.solver.tangential_tol,
+            )
 
     @staticmethod
     def _missing(result: ContactResult, fields) -> set[str]:
@@ -115,6 +141,7 @@ class ElastomerContact:
     def _follow_slip(self, pose: Pose, result: ContactResult) -> None:
         """Full slip: move the anchor so the solved state is the onset of sliding."""
         t, n = result.tangential, result.normal
+        assert t is not None and n is not None, "full slip is only known after a tangential solve"
         w = n.pressure_MPa
         total = float(w.sum())
         ux = float((t.ux_mm * w).sum()) / total

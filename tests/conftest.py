@@ -1,8 +1,8 @@
 import pytest
 
 from rig.clock import ManualClock, SystemClock
-from rig.sim.link import SimServer
 from rig.sim.contact import SpringContact
+from rig.sim.link import SimServer
 from rig.sim.world import SimWorld
 
 

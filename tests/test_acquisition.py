@@ -18,10 +18,16 @@ from protocols.plan import PHASES, Plan
 from protocols.spec import load_protocol, parse_protocol
 from rig.config import SafetyConfig
 
-QUICK = load_protocol("sphere10mm").text.replace('name = "sphere10mm"', 'name = "quick"').replace(
-    "max_depth_mm = 1.6", "max_depth_mm = 0.8").replace("depth_step_mm = 0.4", "depth_step_mm = 0.8").replace(
-    "shear_mm = 2.0", "shear_mm = 0.3").replace("twist_deg = 5.0", "twist_deg = 2.0").replace(
-    "speed_mm_s = 0.01", "speed_mm_s = 0.1").replace("twist_speed_deg_s = 0.25", "twist_speed_deg_s = 1.0")
+QUICK = (
+    load_protocol("sphere10mm")
+    .text.replace('name = "sphere10mm"', 'name = "quick"')
+    .replace("max_depth_mm = 1.6", "max_depth_mm = 0.8")
+    .replace("depth_step_mm = 0.4", "depth_step_mm = 0.8")
+    .replace("shear_mm = 2.0", "shear_mm = 0.3")
+    .replace("twist_deg = 5.0", "twist_deg = 2.0")
+    .replace("speed_mm_s = 0.01", "speed_mm_s = 0.1")
+    .replace("twist_speed_deg_s = 0.25", "twist_speed_deg_s = 1.0")
+)
 
 
 @pytest.fixture
@@ -35,8 +41,12 @@ def run(protocol, out, *, resume=False, progress=None, safety=None, on_rig=None)
     with simulated_rig_for(protocol, safety=safety) as (rig, sim, header):
         if on_rig:
             on_rig(rig, sim)
-        acq = Acquisition(rig, Plan.of(protocol), monitor_interval_s=monitor_interval_s(protocol),
-                          progress=progress(sim) if progress else None)
+        acq = Acquisition(
+            rig,
+            Plan.of(protocol),
+            monitor_interval_s=monitor_interval_s(protocol),
+            progress=progress(sim) if progress else None,
+        )
         result = acq.run(out, resume=resume, header=header)
         try:
             final = rig.positions()  # where the stages ended, read before the rig closes
@@ -85,6 +95,7 @@ def test_file_is_readable_while_it_grows(quick, tmp_path):
 
                 info = summarize(out)  # what `dataset info` prints, on the growing file
                 seen.append((info.frames, info.status))
+
         return check
 
     result, _ = run(quick, out, progress=progress)
@@ -118,7 +129,9 @@ def interrupt_at(frame, action):
         def hook(p):
             if p.frame == frame:
                 action(sim)
+
         return hook
+
     return progress
 
 
@@ -167,13 +180,25 @@ def test_resume_refuses_another_protocol(quick, tmp_path):
         run(other, out, resume=True)
 
 
+def test_resume_accepts_the_same_settings_with_other_comments(quick, tmp_path):
+    """A library file whose comments changed (an upgrade, say) still resumes its runs."""
+    out = tmp_path / "run.h5"
+    run(quick, out, progress=interrupt_at(3, ctrl_c))
+    edited = parse_protocol("# a comment added after the run started\n" + QUICK, "quick.toml")
+    result, _ = run(edited, out, resume=True)
+    assert result.status == "complete" and result.frames == Plan.of(quick).frame_count
+
+
 def start_run(tmp_path, extra=()):
     proto = tmp_path / "slow.toml"
     proto.write_text(QUICK.replace("speed_mm_s = 0.1", "speed_mm_s = 0.02"))
     out = tmp_path / "run.h5"
     rig_bin = str(Path(sys.executable).parent / "rig")
-    proc = subprocess.Popen([rig_bin, "run-protocol", str(proto), "--sim", "--out", str(out), *extra],
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    proc = subprocess.Popen(
+        [rig_bin, "run-protocol", str(proto), "--sim", "--out", str(out), *extra],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
     return proc, proto, out, rig_bin
 
 
@@ -211,8 +236,12 @@ def test_kill_9_then_resume(tmp_path):
         n = f[S.FRAMES].shape[0]
         assert n >= 8 and f[S.STATUS][()] == b"running"
         assert np.all(f[S.WRENCH][:n, 2] > -0.05)  # tared: ≥ 0 up to the noise
-    result = subprocess.run([rig_bin, "run-protocol", str(proto), "--sim", "--resume", str(out)],
-                            capture_output=True, text=True, timeout=300)
+    result = subprocess.run(
+        [rig_bin, "run-protocol", str(proto), "--sim", "--resume", str(out)],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert result.returncode == 0, result.stdout + result.stderr
     planned = Plan.of(load_protocol(proto)).frame_count
     with open_for_reading(out) as f:
@@ -253,7 +282,7 @@ def test_cli_malformed_protocol_names_file_and_key(tmp_path):
     from cli.rig_app import app
 
     bad = tmp_path / "bad.toml"
-    bad.write_text(QUICK.replace('object = "sphere10mm"', 'object = 7'))
+    bad.write_text(QUICK.replace('object = "sphere10mm"', "object = 7"))
     result = CliRunner().invoke(app, ["run-protocol", str(bad), "--sim"])
     assert result.exit_code == 1 and f"{bad}: [protocol.object] must be str" in result.output
 
@@ -265,11 +294,67 @@ def test_unconverged_contact_solves_are_recorded_in_the_run_file(quick, tmp_path
     with simulated_rig_for(quick) as (rig, sim, header):
         if tol is not None:  # a tolerance below what the solver can reach
             sim.world.contact.solver.tol = tol
-        acq = Acquisition(rig, Plan.of(quick), monitor_interval_s=monitor_interval_s(quick),
-                          solver_warnings=lambda: sim.world.contact.solver_warnings)
+        acq = Acquisition(
+            rig,
+            Plan.of(quick),
+            monitor_interval_s=monitor_interval_s(quick),
+            solver_warnings=lambda: sim.world.contact.solver_warnings,
+        )
         result = acq.run(out, header=header)
     assert result.status == "complete"
     with open_for_reading(out) as f:
         recorded = int(f[S.SIM_SOLVER_WARNINGS][()])
     assert recorded == result.solver_warnings
     assert (recorded > 0) == expect_warnings
+
+
+def _interpolation_error(stream: np.ndarray, t: np.ndarray, wrench: np.ndarray) -> float:
+    """Largest distance of the per-frame wrench from the stream interpolated at the frame times
+    the way the gauge does it (rig/drivers/wrench_stream.py, WrenchBuffer.at): between the
+    newest sample at or before t and the next one. Samples of one read share its stamp, and
+    the newest of them at the capture is any of the group (a later read may land at the same
+    instant), so the closest of the group counts."""
+    worst = 0.0
+    ts = stream[:, 0]
+    for tk, wk in zip(t, wrench):
+        i = int(np.searchsorted(ts, tk, side="right"))
+        b = stream[min(i, len(ts) - 1)]
+        group = np.nonzero(ts == ts[i - 1])[0]
+        span = b[0] - ts[i - 1]
+        w = (tk - ts[i - 1]) / span if span > 0 else 0.0
+        worst = max(worst, min(np.abs(stream[j, 1:] * (1 - w) + b[1:] * w - wk).max() for j in group))
+    return worst
+
+
+def _check_stream(f) -> np.ndarray:
+    stream, t, wrench = f[S.WRENCH_STREAM][()], f[S.T_FRAME][:], f[S.WRENCH][:]
+    assert stream.shape[1] == 7 and len(stream) > 5 * len(t)  # the gauge's rate, beyond the 1 Hz frames
+    assert np.all(np.diff(stream[:, 0]) >= 0)  # one read's samples share its stamp; time never goes back
+    assert stream[0, 0] < t[0] and stream[-1, 0] >= t[-1]  # from the tare on, bracketing every capture
+    assert _interpolation_error(stream, t, wrench) < 1e-9
+    return stream
+
+
+def test_full_rate_wrench_is_monotonic_and_matches_the_frames(quick, tmp_path):
+    out = tmp_path / "run.h5"
+    result, _ = run(quick, out)
+    assert result.status == "complete"
+    with open_for_reading(out) as f:
+        stream = _check_stream(f)
+        assert stream[:, 3].max() > 1.0  # Fz of the presses is in it
+        assert f[S.WRENCH_STREAM].attrs["units"].startswith("s (rig clock), N")
+
+
+def test_full_rate_wrench_survives_resume(quick, tmp_path):
+    out = tmp_path / "run.h5"
+    first, _ = run(quick, out, progress=interrupt_at(7, ctrl_c))
+    assert first.status == "interrupted"
+    with open_for_reading(out) as f:
+        before = f[S.WRENCH_STREAM][()]
+    second, _ = run(quick, out, resume=True)
+    assert second.status == "complete"
+    with open_for_reading(out) as f:
+        stream = _check_stream(f)
+        np.testing.assert_array_equal(stream[: len(before)], before)  # kept as it was
+        t = f[S.T_FRAME][:]
+        assert (stream[:, 0] > t[first.frames - 1] + 1.0).sum() > 5 * (len(t) - first.frames)  # and continued

@@ -46,6 +46,7 @@ def open_pair(world, sims, *, mode="realtime", **sim_kwargs):
 
 # -- byte-exact packing ---------------------------------------------------------------
 
+
 def test_requests_byte_exact_from_the_manual():
     # Manual "RDT Request": uint16 0x1234, uint16 command, uint32 sample count, big-endian
     # (NetFTSensor.java writes header, command, count most significant byte first).
@@ -58,11 +59,10 @@ def test_requests_byte_exact_from_the_manual():
 
 def test_record_unpacks_byte_exact():
     # Manual "RDT Record": uint32 rdt_sequence, ft_sequence, status; int32 Fx..Tz; big-endian.
-    record = bytes.fromhex("00000005 0001e240 00000000 000f4240 fff0bdc0 00000001"
-                           "7fffffff 80000000 fffffffe")
+    record = bytes.fromhex("00000005 0001e240 00000000 000f4240 fff0bdc0 000000017fffffff 80000000 fffffffe")
     assert len(record) == rdt.RECORD_LENGTH == 36
-    assert rdt.unpack_record(record) == (5, 123456, 0, (1_000_000, -1_000_000, 1, 2**31 - 1, -2**31, -2))
-    assert rdt.pack_record(5, 123456, 0, (1_000_000, -1_000_000, 1, 2**31 - 1, -2**31, -2)) == record
+    assert rdt.unpack_record(record) == (5, 123456, 0, (1_000_000, -1_000_000, 1, 2**31 - 1, -(2**31), -2))
+    assert rdt.pack_record(5, 123456, 0, (1_000_000, -1_000_000, 1, 2**31 - 1, -(2**31), -2)) == record
 
 
 def test_status_bits_are_named():
@@ -71,9 +71,11 @@ def test_status_bits_are_named():
     assert rdt.status_names(0x80010000) == ["error summary", "monitor condition latched"]
 
 
-XML = (b'<?xml version="1.0"?><netft><cfgfu>2</cfgfu><scfgfu>N</scfgfu><cfgtu>3</cfgtu><scfgtu>Nm</scfgtu>'
-       b"<cfgcpf>1000000</cfgcpf><cfgcpt>1000000</cfgcpt><cfgmr>330;330;990;30;30;30</cfgmr>"
-       b"<comrdtrate>1000</comrdtrate><comrdtbsiz>40</comrdtbsiz></netft>")
+XML = (
+    b'<?xml version="1.0"?><netft><cfgfu>2</cfgfu><scfgfu>N</scfgfu><cfgtu>3</cfgtu><scfgtu>Nm</scfgtu>'
+    b"<cfgcpf>1000000</cfgcpf><cfgcpt>1000000</cfgcpt><cfgmr>330;330;990;30;30;30</cfgmr>"
+    b"<comrdtrate>1000</comrdtrate><comrdtbsiz>40</comrdtbsiz></netft>"
+)
 
 
 def test_config_page_parsed_and_scaled_to_N_and_Nmm():
@@ -81,19 +83,26 @@ def test_config_page_parsed_and_scaled_to_N_and_Nmm():
     assert (cfg.force_unit, cfg.torque_unit, cfg.rdt_rate_hz, cfg.rdt_buffer_size) == ("N", "N-m", 1000, 40)
     np.testing.assert_allclose(cfg.scale, [1e-6, 1e-6, 1e-6, 1e-3, 1e-3, 1e-3])  # N·m → N·mm ×1000
     np.testing.assert_allclose(cfg.rated_native, [330, 330, 990, 30000, 30000, 30000])
-    lbf = rdt.parse_config(XML.replace(b"<cfgfu>2</cfgfu><scfgfu>N</scfgfu>", b"<cfgfu>1</cfgfu><scfgfu>lbf</scfgfu>")
-                           .replace(b"<cfgtu>3</cfgtu><scfgtu>Nm</scfgtu>", b"<cfgtu>1</cfgtu><scfgtu>lbf-in</scfgtu>"),
-                           "gauge", "u")
+    lbf = rdt.parse_config(
+        XML.replace(b"<cfgfu>2</cfgfu><scfgfu>N</scfgfu>", b"<cfgfu>1</cfgfu><scfgfu>lbf</scfgfu>").replace(
+            b"<cfgtu>3</cfgtu><scfgtu>Nm</scfgtu>", b"<cfgtu>1</cfgtu><scfgtu>lbf-in</scfgtu>"
+        ),
+        "gauge",
+        "u",
+    )
     np.testing.assert_allclose(lbf.scale, [4.4482216152605e-6] * 3 + [112.9848290276167e-6] * 3, rtol=1e-12)
 
 
-@pytest.mark.parametrize("old, new, match", [
-    (b"<cfgcpf>1000000</cfgcpf>", b"<cfgcpf>NaN</cfgcpf>", "cfgcpf"),
-    (b"<cfgcpt>1000000</cfgcpt>", b"<cfgcpt>0</cfgcpt>", "cfgcpt"),
-    (b"<cfgcpf>1000000</cfgcpf>", b"", "cfgcpf"),
-    (b"<scfgfu>N</scfgfu>", b"<scfgfu>furlong</scfgfu>", "scfgfu"),
-    (b"<cfgtu>3</cfgtu>", b"<cfgtu>4</cfgtu>", "disagrees"),
-])
+@pytest.mark.parametrize(
+    "old, new, match",
+    [
+        (b"<cfgcpf>1000000</cfgcpf>", b"<cfgcpf>NaN</cfgcpf>", "cfgcpf"),
+        (b"<cfgcpt>1000000</cfgcpt>", b"<cfgcpt>0</cfgcpt>", "cfgcpt"),
+        (b"<cfgcpf>1000000</cfgcpf>", b"", "cfgcpf"),
+        (b"<scfgfu>N</scfgfu>", b"<scfgfu>furlong</scfgfu>", "scfgfu"),
+        (b"<cfgtu>3</cfgtu>", b"<cfgtu>4</cfgtu>", "disagrees"),
+    ],
+)
 def test_bad_config_is_refused(old, new, match):
     with pytest.raises(FramingError, match=match):
         rdt.parse_config(XML.replace(old, new), "gauge", "u")
@@ -116,6 +125,7 @@ def test_sequence_gaps_counted_duplicates_and_old_records_dropped():
 
 # -- driver against the simulator -------------------------------------------------------
 
+
 def test_identification_and_polled_sample(world, sims):
     g, sim = open_pair(world, sims)
     assert isinstance(g, ForceGauge)
@@ -129,8 +139,15 @@ def test_identification_and_polled_sample(world, sims):
 
 
 def test_units_other_than_newton_are_converted(world, sims):
-    g, _ = open_pair(world, sims, force_unit="lbf", torque_unit="lbf-in", counts_per_force=1_000_000,
-                     counts_per_torque=1_000_000, rated=(75, 75, 225, 260, 260, 260))
+    g, _ = open_pair(
+        world,
+        sims,
+        force_unit="lbf",
+        torque_unit="lbf-in",
+        counts_per_force=1_000_000,
+        counts_per_torque=1_000_000,
+        rated=(75, 75, 225, 260, 260, 260),
+    )
     assert g.read().fz_N == pytest.approx(FZ_1MM, abs=0.05)
     g.close()
 
@@ -221,7 +238,7 @@ def test_value_beyond_the_rated_range_is_refused(world, sims):
         g.read()
     g.start_stream()
     assert g.buffer.wait_new(g.buffer.total, 3, timeout_s=2.0)
-    sim.counts_override = (0, 0, -2**31, 0, 0, 0)
+    sim.counts_override = (0, 0, -(2**31), 0, 0, 0)
     bad_before = g.stream_stats()["frames_bad"]
     assert g.buffer.wait_new(g.buffer.total, 20, timeout_s=2.0)
     assert g.stream_stats()["frames_bad"] == bad_before + 1

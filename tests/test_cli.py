@@ -37,8 +37,8 @@ def test_jog_to_and_speed():
 def test_jog_interactive_keys():
     result = runner.invoke(app, ["jog", "--axis", "z", "--sim", "--key-step", "0.2"], input="++-]-q")
     assert result.exit_code == 0, result.output
-    lines = [l for l in result.output.splitlines() if l.startswith("z = ")]
-    assert [l.split()[2] for l in lines] == ["5.0000", "5.2000", "5.4000", "5.2000", "3.2000"]
+    lines = [line for line in result.output.splitlines() if line.startswith("z = ")]
+    assert [line.split()[2] for line in lines] == ["5.0000", "5.2000", "5.4000", "5.2000", "3.2000"]
 
 
 def test_soft_limit_is_one_red_line_not_a_traceback():
@@ -72,9 +72,12 @@ def test_home_and_zero_sim():
 
 
 def test_help_does_not_import_heavy_modules():
-    code = ("import sys; from cli.rig_app import app; "
-            "heavy = [m for m in ('torch', 'diffusers', 'cv2', 'pymodbus', 'serial', 'numpy', 'h5py') if m in sys.modules]; "
-            "print(','.join(heavy))")
+    code = (
+        "import sys; from cli.rig_app import app; "
+        "heavy = [m for m in ('torch', 'diffusers', 'cv2', 'pymodbus', 'serial', 'numpy', 'h5py') "
+        "if m in sys.modules]; "
+        "print(','.join(heavy))"
+    )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.strip()
     assert out == ""
 
@@ -82,17 +85,25 @@ def test_help_does_not_import_heavy_modules():
 def test_sim_serve_then_status_from_another_process(tmp_path):
     cfg = tmp_path / "sim.toml"
     rig = str(Path(sys.executable).parent / "rig")
-    server = subprocess.Popen([rig, "sim", "serve", "--out", str(cfg), "--transport", "tcp"],
-                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    server = subprocess.Popen(
+        [rig, "sim", "serve", "--out", str(cfg), "--transport", "tcp"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     try:
         lines = []
         for line in server.stdout:
             lines.append(line)
             if line.startswith("serving"):
                 break
-        assert any(l.startswith("stages") for l in lines) and cfg.exists()
-        result = subprocess.run([rig, "jog", "--axis", "y", "--step", "0.25", "--config", str(cfg)],
-                                capture_output=True, text=True, timeout=60)
+        assert any(line.startswith("stages") for line in lines) and cfg.exists()
+        result = subprocess.run(
+            [rig, "jog", "--axis", "y", "--step", "0.25", "--config", str(cfg)],
+            capture_output=True,
+            text=True,
+            timeout=60,
+        )
         assert result.returncode == 0, result.stderr
         assert result.stdout.strip() == "y = 0.2500 mm"
         result = subprocess.run([rig, "status", "--config", str(cfg)], capture_output=True, text=True, timeout=60)
@@ -115,6 +126,9 @@ def test_sim_serve_then_status_from_another_process(tmp_path):
 
 def test_train_reports_bad_input_in_one_line(tmp_path):
     bindir = Path(sys.executable).parent
-    result = subprocess.run([str(bindir / "train"), "--data", str(tmp_path / "nowhere"), "--out", str(tmp_path / "r")],
-                            capture_output=True, text=True)
+    result = subprocess.run(
+        [str(bindir / "train"), "--data", str(tmp_path / "nowhere"), "--out", str(tmp_path / "r")],
+        capture_output=True,
+        text=True,
+    )
     assert result.returncode == 1 and "no split.json" in result.stderr and "Traceback" not in result.stderr

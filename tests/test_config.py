@@ -2,8 +2,8 @@
 
 import pytest
 
-from rig.config import load_config, parse_config
 from common.errors import ConfigError
+from rig.config import load_config, parse_config
 from rig.sim.rig_sim import SimulatedRig
 
 GOOD = """
@@ -33,19 +33,22 @@ def test_good_config_parses_with_defaults():
     assert (cfg.gauge.baudrate, cfg.gauge.device_id, cfg.gauge.mode) == (19200, 9, "stream")
 
 
-@pytest.mark.parametrize("edit, key, words", [
-    (('travel = [-5.0, 20.0]', 'travel = [20.0, -5.0]'), "axes.z.travel", "low < high"),
-    (('travel = [-5.0, 20.0]', 'travel = "wide"'), "axes.z.travel", "list of 2 numbers"),
-    (('driver = "zaber"', 'driver = "stepper"'), "axes.z.driver", "'zaber', 'pr_drive'"),
-    (('max_speed = 2.0', 'max_speed = -1'), "axes.z.max_speed", "> 0"),
-    (('max_speed = 2.0', 'max_speed = 2.0\njog_speed = 3.0'), "axes.z.jog_speed", "must not exceed"),
-    (('scale = -0.000047625', 'scale = 0'), "axes.z.scale", "non-zero"),
-    (('scale = -0.000047625\n', ''), "axes.z.scale", "is required"),
-    (('device = 3', 'device = 3\nspeed = 4'), "axes.z.speed", "unknown key"),
-    (('[axes.z]', '[axes.w]'), "axes.w", "unknown axis"),
-    (('port = "/dev/ttyUSB1"', 'port = "/dev/ttyUSB0"'), "gauge.port", "own port"),
-    (('max_force_N = [10.0, 10.0, 40.0]', 'max_force_N = [10.0, 40.0]'), "safety.max_force_N", "3 numbers"),
-])
+@pytest.mark.parametrize(
+    "edit, key, words",
+    [
+        (("travel = [-5.0, 20.0]", "travel = [20.0, -5.0]"), "axes.z.travel", "low < high"),
+        (("travel = [-5.0, 20.0]", 'travel = "wide"'), "axes.z.travel", "list of 2 numbers"),
+        (('driver = "zaber"', 'driver = "stepper"'), "axes.z.driver", "'zaber', 'pr_drive'"),
+        (("max_speed = 2.0", "max_speed = -1"), "axes.z.max_speed", "> 0"),
+        (("max_speed = 2.0", "max_speed = 2.0\njog_speed = 3.0"), "axes.z.jog_speed", "must not exceed"),
+        (("scale = -0.000047625", "scale = 0"), "axes.z.scale", "non-zero"),
+        (("scale = -0.000047625\n", ""), "axes.z.scale", "is required"),
+        (("device = 3", "device = 3\nspeed = 4"), "axes.z.speed", "unknown key"),
+        (("[axes.z]", "[axes.w]"), "axes.w", "unknown axis"),
+        (('port = "/dev/ttyUSB1"', 'port = "/dev/ttyUSB0"'), "gauge.port", "own port"),
+        (("max_force_N = [10.0, 10.0, 40.0]", "max_force_N = [10.0, 40.0]"), "safety.max_force_N", "3 numbers"),
+    ],
+)
 def test_bad_values_name_file_and_key(edit, key, words):
     text = GOOD.replace(*edit)
     with pytest.raises(ConfigError) as err:
@@ -71,7 +74,9 @@ def test_not_toml_and_missing_file(tmp_path):
 
 
 def test_shared_port_must_agree():
-    text = GOOD + """
+    text = (
+        GOOD
+        + """
 [axes.x]
 driver = "pr_drive"
 port = "/dev/ttyUSB0"
@@ -80,6 +85,7 @@ travel_per_rev = 5.0
 travel = [-10.0, 10.0]
 max_speed = 2.0
 """
+    )
     with pytest.raises(ConfigError, match=r"axes.x.port.*shared with axis z"):
         parse_config(text, "r.toml")
 
@@ -101,15 +107,18 @@ def test_documented_example_config_is_valid():
     assert cfg.axes["z"].scale < 0 and cfg.pendant.vendor_id == 0x256F
 
 
-@pytest.mark.parametrize("value, words", [
-    (float("nan"), "must be a finite number, got nan"),   # NaN passes every `low <= v <= high`
-    (float("inf"), "must be a finite number, got inf"),
-    (10 ** 400, "must be a finite number"),                # an int too large for a float
-    (True, "must be a number, got True"),                  # bool is an int in Python
-    ("1.0", "must be a number, got '1.0'"),
-    (0.0, "must be > 0 and <= 300.0, got 0.0"),
-    (300.5, "must be > 0 and <= 300.0, got 300.5"),
-])
+@pytest.mark.parametrize(
+    "value, words",
+    [
+        (float("nan"), "must be a finite number, got nan"),  # NaN passes every `low <= v <= high`
+        (float("inf"), "must be a finite number, got inf"),
+        (10**400, "must be a finite number"),  # an int too large for a float
+        (True, "must be a number, got True"),  # bool is an int in Python
+        ("1.0", "must be a number, got '1.0'"),
+        (0.0, "must be > 0 and <= 300.0, got 0.0"),
+        (300.5, "must be > 0 and <= 300.0, got 300.5"),
+    ],
+)
 def test_finite_number_refuses_what_comparisons_let_through(value, words):
     from common.table import finite_number
 

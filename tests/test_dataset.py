@@ -13,22 +13,40 @@ from cli.dataset_app import app
 from dataset.condition import place_object
 from dataset.runs import summarize, validate
 from dataset.split import SplitError, load_split, make_split, parse_ratios
-from protocols.plan import PHASES
 from objects.indenters import get_indenter
+from protocols.plan import PHASES
 
 runner = CliRunner()
 
 
-def make_run(path: Path, n: int = 40, *, obj: str = "sphere10mm", status: str = "complete", size: int = 64,
-             seed: int = 0, wrench_offset: float = 0.0) -> Path:
+def make_run(
+    path: Path,
+    n: int = 40,
+    *,
+    obj: str = "sphere10mm",
+    status: str = "complete",
+    size: int = 64,
+    seed: int = 0,
+    wrench_offset: float = 0.0,
+) -> Path:
     rng = np.random.default_rng(seed)
     header = RunHeader("test", f"# {obj}", "", obj, "", "rgb", 14 / size, 1.0, n, (0, 0, 0, 0), PHASES)
     frames = rng.integers(20, 230, (n, size, size, 3), dtype=np.uint8)
     w = RunWriter.create(path, header, (size, size, 3), get_indenter(obj).object_image(size, 14 / size), frames[0])
     for i in range(n):
-        w.append(frames[i], wrench=rng.normal(size=6) + wrench_offset, pose_commanded=np.zeros(4),
-                 pose_measured=np.array([0.5, -0.25, -1.0, 0.0]), t_frame_s=float(i), t_capture_s=float(i),
-                 wrench_skew_s=0.001, capture_index=i, step_index=0, phase_index=1, level=1)
+        w.append(
+            frames[i],
+            wrench=rng.normal(size=6) + wrench_offset,
+            pose_commanded=np.zeros(4),
+            pose_measured=np.array([0.5, -0.25, -1.0, 0.0]),
+            t_frame_s=float(i),
+            t_capture_s=float(i),
+            wrench_skew_s=0.001,
+            capture_index=i,
+            step_index=0,
+            phase_index=1,
+            level=1,
+        )
     w.set_status(status, "" if status == "complete" else "force limit: Fz = 9 N")
     w.close()
     return path
@@ -36,8 +54,10 @@ def make_run(path: Path, n: int = 40, *, obj: str = "sphere10mm", status: str = 
 
 @pytest.fixture
 def runs(tmp_path):
-    return [make_run(tmp_path / f"run{i}.h5", n=30 + 10 * i, obj=obj, seed=i)
-            for i, obj in enumerate(["sphere10mm", "sphere10mm", "heart", "ring"])]
+    return [
+        make_run(tmp_path / f"run{i}.h5", n=30 + 10 * i, obj=obj, seed=i)
+        for i, obj in enumerate(["sphere10mm", "sphere10mm", "heart", "ring"])
+    ]
 
 
 def test_ratios():
@@ -119,8 +139,12 @@ def test_validate_finds_problems(tmp_path):
         f[S.FRAMES][0] = 0
         f[S.WRENCH_SKEW][5] = 0.5
     findings = "\n".join(validate(broken))
-    for words in ("wrench: NaN/inf in 1 rows (first at frame 3)", "t_frame_s: not increasing",
-                  "frames[0]: all black", "wrench_skew_s: 1 frames beyond 0.1 s"):
+    for words in (
+        "wrench: NaN/inf in 1 rows (first at frame 3)",
+        "t_frame_s: not increasing",
+        "frames[0]: all black",
+        "wrench_skew_s: 1 frames beyond 0.1 s",
+    ):
         assert words in findings
     result = runner.invoke(app, ["validate", str(good), str(broken)])
     assert result.exit_code == 1 and "good.h5: ok" in result.output and "broken.h5: 4 finding(s)" in result.output
@@ -164,7 +188,9 @@ def test_dataset_commands_do_not_import_torch():
     import subprocess
     import sys
 
-    code = "import sys; from cli.dataset_app import app; import dataset.runs, dataset.split; print('torch' in sys.modules)"
+    code = (
+        "import sys; from cli.dataset_app import app; import dataset.runs, dataset.split; print('torch' in sys.modules)"
+    )
     assert subprocess.run([sys.executable, "-c", code], capture_output=True, text=True).stdout.strip() == "False"
 
 

@@ -11,11 +11,11 @@ from rig.drivers.m8128 import M8128
 from rig.drivers.pr_drive import PrDriveAxis
 from rig.drivers.zaber import ZaberAxis, ZaberChain
 from rig.errors import DeviceDisconnected, DeviceError, DeviceTimeout
+from rig.sim.contact import SpringContact
 from rig.sim.ft300_sim import Ft300Sim
 from rig.sim.m8128_sim import M8128Sim
 from rig.sim.modbus_rtu import RtuServer
 from rig.sim.pr_drive_sim import PrDriveSim
-from rig.sim.contact import SpringContact
 from rig.sim.world import SimWorld
 from rig.sim.zaber_sim import ZaberChainSim, ZaberDeviceSim
 from rig.transport.modbus_bus import ModbusBus
@@ -79,11 +79,16 @@ def test_zaber_device_vanishes(zaber_x):
 
 @pytest.fixture
 def pr_theta(world, manual_clock, serve):
-    server = serve(RtuServer({1: PrDriveSim(world.stages["theta"], pulses_per_rev=10000, travel_per_rev=4.0)}),
-                   manual_clock)
+    server = serve(
+        RtuServer({1: PrDriveSim(world.stages["theta"], pulses_per_rev=10000, travel_per_rev=4.0)}), manual_clock
+    )
     bus = ModbusBus(server.url, baudrate=38400, timeout_s=0.15, retries=2, device="bus")
-    yield PrDriveAxis(bus, name="theta", device_id=1, pulses_per_rev=10000, travel_per_rev=4.0,
-                      offset=-180.0, unit="deg"), server
+    yield (
+        PrDriveAxis(
+            bus, name="theta", device_id=1, pulses_per_rev=10000, travel_per_rev=4.0, offset=-180.0, unit="deg"
+        ),
+        server,
+    )
     bus.close()
 
 

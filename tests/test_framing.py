@@ -11,13 +11,16 @@ from rig.transport.crc import append_crc, crc16_modbus, crc_ok
 from rig.transport.modbus_bus import join_int32, split_int32
 
 
-@pytest.mark.parametrize("frame, crc", [
-    # Modbus over Serial Line spec / countless manuals: read 10 holding registers from 1.
-    (bytes.fromhex("01 03 00 00 00 0A"), bytes.fromhex("C5 CD")),
-    (bytes.fromhex("01 03 00 00 00 01"), bytes.fromhex("84 0A")),
-    # Robotiq FT300 manual: start stream = write 0x0200 to register 410 (0x019A) of id 9.
-    (bytes.fromhex("09 10 01 9A 00 01 02 02 00"), bytes.fromhex("CD CA")),
-])
+@pytest.mark.parametrize(
+    "frame, crc",
+    [
+        # Modbus over Serial Line spec / countless manuals: read 10 holding registers from 1.
+        (bytes.fromhex("01 03 00 00 00 0A"), bytes.fromhex("C5 CD")),
+        (bytes.fromhex("01 03 00 00 00 01"), bytes.fromhex("84 0A")),
+        # Robotiq FT300 manual: start stream = write 0x0200 to register 410 (0x019A) of id 9.
+        (bytes.fromhex("09 10 01 9A 00 01 02 02 00"), bytes.fromhex("CD CA")),
+    ],
+)
 def test_crc16_modbus_matches_manual_frames(frame, crc):
     assert append_crc(frame)[-2:] == crc
     assert crc_ok(frame + crc)
@@ -53,8 +56,9 @@ def test_ft300_polled_counts_are_signed_registers():
     regs = [0x0064, 0xFF06, 0x04D2, 0x007B, 0xFFCE, 0x0001]
     from rig.transport.modbus_bus import to_signed16
 
-    np.testing.assert_allclose(ft300.decode_counts([to_signed16(r) for r in regs]),
-                               [1.0, -2.5, 12.34, 123.0, -50.0, 1.0])
+    np.testing.assert_allclose(
+        ft300.decode_counts([to_signed16(r) for r in regs]), [1.0, -2.5, 12.34, 123.0, -50.0, 1.0]
+    )
 
 
 def test_m8128_frame_layout_and_sum_byte():
@@ -83,7 +87,15 @@ def test_zaber_checksum_is_twos_complement_of_byte_sum():
 
 def test_zaber_reply_parsing_from_manual():
     r = za.parse_reply(b"@01 1 OK IDLE -- 36283\r\n")
-    assert (r.device, r.axis, r.message_id, r.flag, r.status, r.warning, r.data) == (1, 1, None, "OK", "IDLE", "--", "36283")
+    assert (r.device, r.axis, r.message_id, r.flag, r.status, r.warning, r.data) == (
+        1,
+        1,
+        None,
+        "OK",
+        "IDLE",
+        "--",
+        "36283",
+    )
     r = za.parse_reply(b"@02 1 07 RJ BUSY WR BADDATA\r\n")
     assert (r.device, r.message_id, r.flag, r.busy, r.warning, r.data) == (2, 7, "RJ", True, "WR", "BADDATA")
 

@@ -6,10 +6,10 @@ import pytest
 from rig.clock import SystemClock
 from rig.drivers.ft300 import FT300
 from rig.drivers.m8128 import M8128
-from rig.errors import DeviceRejected
+from rig.errors import DeviceRejected, DeviceTimeout, FramingError
+from rig.sim.contact import SpringContact
 from rig.sim.ft300_sim import Ft300Sim
 from rig.sim.m8128_sim import M8128Sim
-from rig.sim.contact import SpringContact
 from rig.sim.world import SimWorld
 from rig.transport.modbus_bus import ModbusBus
 from rig.transport.serial_link import SerialLink
@@ -81,10 +81,44 @@ def test_stream_tare_uses_stream_samples(gauge, live_world):
 
 
 def test_ft300_identification(live_world, serve):
+    # Decoded as Robotiq's rq_sensor_com.c prints them: "%c%c%c-%hhu.%hhu.%hhu" from
+    # 500-502, "%c%c%c-%.4lu" from 510-513 (number = 513 << 16 | 512), 514 the year.
     server = serve(Ft300Sim(live_world), live_world.clock)
     g = FT300(ModbusBus(server.url, baudrate=19200, timeout_s=0.3, retries=0, device="ft300"), live_world.clock)
-    assert g.identify() == {"firmware": "FT3.04", "serial": 100001, "year": 2024}
+    assert g.identify() == {"firmware": "FTS-1.0.3", "serial": "FTS-100001", "serial_number": 100001, "year": 2024}
+    assert not g.stopped_stream_at_open
     g.close()
+
+
+@pytest.mark.parametrize("mode", ["poll", "stream"])
+def test_ft300_opens_on_a_sensor_left_streaming(live_world, serve, mode):
+    # A sensor still streaming from a crashed session ignores Modbus until it hears
+    # the 0xFF jam signal; rq_sensor_com.c listens first, jams, then talks Modbus.
+    sim = Ft300Sim(live_world, streaming=True)
+    server = serve(sim, live_world.clock)
+    bus = ModbusBus(server.url, baudrate=19200, timeout_s=0.3, retries=0, device="ft300")
+    assert sim.streaming
+    g = FT300(bus, live_world.clock)
+    assert g.stopped_stream_at_open and not sim.streaming
+    press(live_world, 1.0)
+    if mode == "stream":
+        g.start_stream()
+        assert g.buffer.wait_new(g.buffer.total, 5, timeout_s=3.0)
+    assert g.read().fz_N == pytest.approx(6.0 + 0.35, abs=0.05)
+    g.stop_stream()
+    assert g.identify()["firmware"] == "FTS-1.0.3"  # plain Modbus again
+    g.close()
+
+
+def test_ft300_without_the_stop_signal_a_streaming_sensor_times_out(live_world, serve, monkeypatch):
+    # The failure the recovery fixes: a Modbus request into a stream gets stream frames
+    # back (refused as garbled) or nothing.
+    monkeypatch.setattr(FT300, "stop_leftover_stream", lambda self: False)
+    server = serve(Ft300Sim(live_world, streaming=True), live_world.clock)
+    g = FT300(ModbusBus(server.url, baudrate=19200, timeout_s=0.2, retries=0, device="ft300"), live_world.clock)
+    with pytest.raises((DeviceTimeout, FramingError), match="FT300"):
+        g.read()
+    g.bus.close()
 
 
 def test_m8128_bad_command_is_rejected(live_world, serve):
@@ -104,3 +138,14 @@ def test_polled_read_after_a_stream(gauge, live_world):
     g.stop_stream()
     for _ in range(3):
         assert g.read().fz_N == pytest.approx(6.0 + 0.35, abs=0.05)
+
+
+def test_ft300_sensor_that_keeps_streaming_is_a_typed_timeout(live_world, serve, monkeypatch):
+    from rig.sim import ft300_sim
+
+    monkeypatch.setattr(ft300_sim, "STOP_RUN", 10**9)  # deaf to the jam signal
+    server = serve(Ft300Sim(live_world, streaming=True), live_world.clock)
+    bus = ModbusBus(server.url, baudrate=19200, timeout_s=0.2, retries=0, device="ft300")
+    with pytest.raises(DeviceTimeout, match=r"FT300.*still streaming after 5 stop signals"):
+        FT300(bus, live_world.clock)
+    bus.close()

@@ -5,7 +5,8 @@ import pytest
 import typer
 
 from cli.dataset_app import app as dataset_app
-from cli.model_app import app as train_app, evaluate_app, generate_app
+from cli.model_app import app as train_app
+from cli.model_app import evaluate_app, generate_app
 from cli.rig_app import app as rig_app
 
 APPS = {"rig": rig_app, "dataset": dataset_app, "train": train_app, "generate": generate_app, "evaluate": evaluate_app}

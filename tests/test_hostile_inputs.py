@@ -1,4 +1,4 @@
-"""Hostile numbers and paths get one-line errors where they enter (issue 12, findings 2 and 8).
+"""Hostile numbers and paths get one-line errors where they enter.
 
 Each finding has a test that failed on the code before the checks (NaN limits loaded,
 NaN shear ran as no shear, ``../`` frame files were read, a zero split part came out
@@ -29,13 +29,13 @@ from typer.testing import CliRunner
 
 from acquisition.run_file import RunFileError
 from cli.dataset_app import app as dataset_app
+from cli.rig_app import app as rig_app
+from common.errors import ConfigError
 from dataset.interchange import import_run
 from dataset.split import SplitError, make_split, parse_ratios
 from protocols.plan import MAX_FRAMES, MAX_LEVELS, MAX_STEPS, Plan
 from protocols.spec import load_protocol, parse_protocol
-from cli.rig_app import app as rig_app
 from rig.config import RigConfig, parse_config
-from common.errors import ConfigError
 from rig.sim.rig_sim import SimulatedRig
 
 runner = CliRunner()
@@ -65,19 +65,26 @@ def one_line(message: str) -> str:
 # ---------------------------------------------------------------------------------------------
 # Finding 2: a rig config with NaN/inf limits disarmed the force guard.
 
+
 def sim_config_text(simulated: SimulatedRig) -> str:
     return simulated.config_toml(with_camera=False)
 
 
-@pytest.mark.parametrize("old, new, key", [
-    ("max_force_N = [10.0, 10.0, 40.0]", "max_force_N = [nan, nan, nan]", "safety.max_force_N[0]"),
-    ("max_force_N = [10.0, 10.0, 40.0]", "max_force_N = [10.0, 10.0, inf]", "safety.max_force_N[2]"),
-    ("max_torque_Nmm = [300.0, 300.0, 200.0]", "max_torque_Nmm = [inf, 300.0, 200.0]", "safety.max_torque_Nmm[0]"),
-    # the FT300 saturates at 327.67 N (int16 / 100): a higher limit can never trip
-    ("max_force_N = [10.0, 10.0, 40.0]", "max_force_N = [10.0, 10.0, 400.0]", "safety.max_force_N[2]"),
-    ("max_torque_Nmm = [300.0, 300.0, 200.0]",
-     "max_torque_Nmm = [300.0, 300.0, 200.0]\npoll_s = nan", "safety.poll_s"),
-])
+@pytest.mark.parametrize(
+    "old, new, key",
+    [
+        ("max_force_N = [10.0, 10.0, 40.0]", "max_force_N = [nan, nan, nan]", "safety.max_force_N[0]"),
+        ("max_force_N = [10.0, 10.0, 40.0]", "max_force_N = [10.0, 10.0, inf]", "safety.max_force_N[2]"),
+        ("max_torque_Nmm = [300.0, 300.0, 200.0]", "max_torque_Nmm = [inf, 300.0, 200.0]", "safety.max_torque_Nmm[0]"),
+        # the FT300 saturates at 327.67 N (int16 / 100): a higher limit can never trip
+        ("max_force_N = [10.0, 10.0, 40.0]", "max_force_N = [10.0, 10.0, 400.0]", "safety.max_force_N[2]"),
+        (
+            "max_torque_Nmm = [300.0, 300.0, 200.0]",
+            "max_torque_Nmm = [300.0, 300.0, 200.0]\npoll_s = nan",
+            "safety.poll_s",
+        ),
+    ],
+)
 def test_nan_inf_and_unmeasurable_limits_refused_at_load(old, new, key):
     with SimulatedRig() as simulated:
         text = sim_config_text(simulated)
@@ -87,21 +94,24 @@ def test_nan_inf_and_unmeasurable_limits_refused_at_load(old, new, key):
     assert one_line(str(err.value)).startswith(f"lab/rig.toml: [{key}] ")
 
 
-@pytest.mark.parametrize("pattern, value, key", [
-    ("travel = [", "travel = [-inf, inf]\n#", "travel[0]"),
-    ("max_speed = ", "max_speed = inf\n#", "max_speed"),
-    ("max_speed = ", "max_speed = nan\n#", "max_speed"),
-    ("timeout_s = ", "timeout_s = nan\n#", "timeout_s"),
-    ("offset = ", "offset = -inf\n#", "offset"),
-    ("scale = ", "scale = nan\n#", "scale"),
-])
+@pytest.mark.parametrize(
+    "pattern, value, key",
+    [
+        ("travel = [", "travel = [-inf, inf]\n#", "travel[0]"),
+        ("max_speed = ", "max_speed = inf\n#", "max_speed"),
+        ("max_speed = ", "max_speed = nan\n#", "max_speed"),
+        ("timeout_s = ", "timeout_s = nan\n#", "timeout_s"),
+        ("offset = ", "offset = -inf\n#", "offset"),
+        ("scale = ", "scale = nan\n#", "scale"),
+    ],
+)
 def test_nan_inf_axis_values_refused_at_load(pattern, value, key):
     with SimulatedRig() as simulated:
         text = sim_config_text(simulated)
     z = text.index("[axes.z]")
     at = text.index(pattern, z)
     with pytest.raises(ConfigError) as err:
-        parse_config(text[:at] + value + text[at + len(pattern):], "lab/rig.toml")
+        parse_config(text[:at] + value + text[at + len(pattern) :], "lab/rig.toml")
     assert one_line(str(err.value)).startswith(f"lab/rig.toml: [axes.z.{key}] ")
 
 
@@ -110,8 +120,9 @@ def test_jog_with_nan_force_limits_is_refused_before_anything_moves(tmp_path):
     max_force_N = [nan, nan, nan] exited 0 with the gauge saturated at 327 N."""
     with SimulatedRig() as simulated:
         cfg = tmp_path / "rig-sim.toml"
-        cfg.write_text(sim_config_text(simulated).replace("max_force_N = [10.0, 10.0, 40.0]",
-                                                          "max_force_N = [nan, nan, nan]"))
+        cfg.write_text(
+            sim_config_text(simulated).replace("max_force_N = [10.0, 10.0, 40.0]", "max_force_N = [nan, nan, nan]")
+        )
         z = simulated.world.stages["z"]
         before = z.position(simulated.clock.now())
         result = runner.invoke(rig_app, ["jog", "--axis", "z", "--to", "-4", "--config", str(cfg)])
@@ -173,8 +184,9 @@ def test_out_into_a_read_only_directory_is_refused(no_devices):
         os.setegid(65534)
         os.seteuid(65534)
     try:
-        result = runner.invoke(rig_app, ["run-protocol", str(protocol), "--sim", "--out", str(folder / "run.h5"),
-                                         *QUICK_SETTINGS])
+        result = runner.invoke(
+            rig_app, ["run-protocol", str(protocol), "--sim", "--out", str(folder / "run.h5"), *QUICK_SETTINGS]
+        )
     finally:
         if as_root:
             os.seteuid(0)
@@ -198,16 +210,23 @@ def test_out_into_a_read_only_directory_is_refused(no_devices):
 BASE = load_protocol("sphere10mm").text
 
 
-@pytest.mark.parametrize("old, new, key", [
-    ("max_depth_mm = 1.6", "max_depth_mm = inf", "motion.max_depth_mm"),
-    ("approach_mm = 1.0", "approach_mm = nan", "motion.approach_mm"),
-    ("depth_step_mm = 0.4", "depth_step_mm = 1e-300", "motion.depth_step_mm"),  # hung the planner
-    ("shear_mm = 2.0", "shear_mm = nan", "motion.shear_mm"),  # ran as no shear
-    ("twist_deg = 5.0", "twist_deg = nan", "motion.twist_deg"),  # ran as no twist
-    ("shear_mm = 2.0", "shear_mm = 2.225073858507e-311", "motion.shear_mm"),  # ZeroDivisionError (found by hypothesis)
-    ("twist_deg = 5.0", "twist_deg = 5e-324", "motion.twist_deg"),
-    ("rate_hz = 1.0", "rate_hz = -inf", "capture.rate_hz"),
-])
+@pytest.mark.parametrize(
+    "old, new, key",
+    [
+        ("max_depth_mm = 1.6", "max_depth_mm = inf", "motion.max_depth_mm"),
+        ("approach_mm = 1.0", "approach_mm = nan", "motion.approach_mm"),
+        ("depth_step_mm = 0.4", "depth_step_mm = 1e-300", "motion.depth_step_mm"),  # hung the planner
+        ("shear_mm = 2.0", "shear_mm = nan", "motion.shear_mm"),  # ran as no shear
+        ("twist_deg = 5.0", "twist_deg = nan", "motion.twist_deg"),  # ran as no twist
+        (
+            "shear_mm = 2.0",
+            "shear_mm = 2.225073858507e-311",
+            "motion.shear_mm",
+        ),  # ZeroDivisionError (found by hypothesis)
+        ("twist_deg = 5.0", "twist_deg = 5e-324", "motion.twist_deg"),
+        ("rate_hz = 1.0", "rate_hz = -inf", "capture.rate_hz"),
+    ],
+)
 def test_protocol_nan_inf_and_tiny_values_refused(old, new, key):
     assert old in BASE
     with time_limit(10), pytest.raises(ConfigError) as err:
@@ -224,12 +243,15 @@ def test_planner_caps_levels_and_frames_naming_the_cap():
         Plan.of(parse_protocol(crawl, "my/p.toml"))
 
 
-@pytest.mark.parametrize("setting, key", [
-    ("motion.speed_mm_s=nan", "motion.speed_mm_s"),
-    ("motion.shear_mm=nan", "motion.shear_mm"),
-    ("motion.max_depth_mm=1e999", "motion.max_depth_mm"),
-    ("capture.rate_hz=0", "capture.rate_hz"),
-])
+@pytest.mark.parametrize(
+    "setting, key",
+    [
+        ("motion.speed_mm_s=nan", "motion.speed_mm_s"),
+        ("motion.shear_mm=nan", "motion.shear_mm"),
+        ("motion.max_depth_mm=1e999", "motion.max_depth_mm"),
+        ("capture.rate_hz=0", "capture.rate_hz"),
+    ],
+)
 def test_set_values_are_checked_like_the_file(setting, key):
     with pytest.raises(ConfigError) as err:
         load_protocol("sphere10mm", [setting])
@@ -248,8 +270,22 @@ def test_set_cannot_smuggle_a_second_line(tmp_path):
 # ---------------------------------------------------------------------------------------------
 # Finding 8: dataset import.
 
-COLUMNS = ["file", "t_frame_s", "Fx_N", "Fy_N", "Fz_N", "Mx_Nmm", "My_Nmm", "Mz_Nmm",
-           "x_mm", "y_mm", "z_mm", "theta_deg", "phase", "level"]
+COLUMNS = [
+    "file",
+    "t_frame_s",
+    "Fx_N",
+    "Fy_N",
+    "Fz_N",
+    "Mx_Nmm",
+    "My_Nmm",
+    "Mz_Nmm",
+    "x_mm",
+    "y_mm",
+    "z_mm",
+    "theta_deg",
+    "phase",
+    "level",
+]
 
 
 def import_folder(root: Path, rows: int = 2, meta: dict | None = None) -> Path:
@@ -260,13 +296,29 @@ def import_folder(root: Path, rows: int = 2, meta: dict | None = None) -> Path:
     table = []
     for i in range(rows):
         cv2.imwrite(str(folder / f"frames/{i:06d}.png"), rng.integers(0, 255, (8, 8, 3), dtype=np.uint8))
-        table.append({"file": f"frames/{i:06d}.png", "t_frame_s": str(float(i)), "Fx_N": "0.1", "Fy_N": "-0.2",
-                      "Fz_N": "1.5", "Mx_Nmm": "3.0", "My_Nmm": "-2.0", "Mz_Nmm": "0.5", "x_mm": "0.0",
-                      "y_mm": "0.5", "z_mm": "-0.4", "theta_deg": "0.0", "phase": "press", "level": "1"})
+        table.append(
+            {
+                "file": f"frames/{i:06d}.png",
+                "t_frame_s": str(float(i)),
+                "Fx_N": "0.1",
+                "Fy_N": "-0.2",
+                "Fz_N": "1.5",
+                "Mx_Nmm": "3.0",
+                "My_Nmm": "-2.0",
+                "Mz_Nmm": "0.5",
+                "x_mm": "0.0",
+                "y_mm": "0.5",
+                "z_mm": "-0.4",
+                "theta_deg": "0.0",
+                "phase": "press",
+                "level": "1",
+            }
+        )
     cv2.imwrite(str(folder / "object.png"), np.full((8, 8, 3), 200, np.uint8))
     write_table(folder, table)
-    (folder / "run.json").write_text(json.dumps(meta if meta is not None else
-                                                {"mm_per_px": 0.0634, "object": "sphere10mm", "capture_hz": 1.0}))
+    (folder / "run.json").write_text(
+        json.dumps(meta if meta is not None else {"mm_per_px": 0.0634, "object": "sphere10mm", "capture_hz": 1.0})
+    )
     return folder
 
 
@@ -288,13 +340,16 @@ def test_import_folder_is_valid_as_built(tmp_path):
     assert result.exit_code == 0, result.output
 
 
-@pytest.mark.parametrize("meta, key, words", [
-    ({"mm_per_px": "x"}, "mm_per_px", "must be a number, got 'x'"),
-    ({"mm_per_px": -0.06}, "mm_per_px", "must be in [0.0001, 10.0], got -0.06"),
-    ({"mm_per_px": float("nan")}, "mm_per_px", "must be a finite number, got nan"),
-    ({"mm_per_px": 0.06, "capture_hz": 0}, "capture_hz", "must be in [0.01, 1000.0], got 0"),
-    ({"mm_per_px": 0.06, "capture_hz": float("inf")}, "capture_hz", "must be a finite number, got inf"),
-])
+@pytest.mark.parametrize(
+    "meta, key, words",
+    [
+        ({"mm_per_px": "x"}, "mm_per_px", "must be a number, got 'x'"),
+        ({"mm_per_px": -0.06}, "mm_per_px", "must be in [0.0001, 10.0], got -0.06"),
+        ({"mm_per_px": float("nan")}, "mm_per_px", "must be a finite number, got nan"),
+        ({"mm_per_px": 0.06, "capture_hz": 0}, "capture_hz", "must be in [0.01, 1000.0], got 0"),
+        ({"mm_per_px": 0.06, "capture_hz": float("inf")}, "capture_hz", "must be a finite number, got inf"),
+    ],
+)
 def test_import_metadata_refused_naming_run_json_and_key(tmp_path, meta, key, words):
     folder = import_folder(tmp_path, meta=meta)
     result = runner.invoke(dataset_app, ["import", str(folder), "--out", str(tmp_path / "x.h5")])
@@ -303,15 +358,18 @@ def test_import_metadata_refused_naming_run_json_and_key(tmp_path, meta, key, wo
     assert not (tmp_path / "x.h5").exists()
 
 
-@pytest.mark.parametrize("column, value, words", [
-    ("level", "300", "must be in [0, 127], got 300.0"),
-    ("Fz_N", "nan", "must be a finite number, got nan"),
-    ("Mz_Nmm", "-inf", "must be a finite number, got -inf"),
-    ("x_mm", "1e300", "must be in [-10000.0, 10000.0], got 1e+300"),
-    ("phase", "stroke", "unknown phase 'stroke'; expected one of approach, press"),
-    ("file", "../../x.png", "'../../x.png' is outside"),
-    ("file", "/etc/hostname", "'/etc/hostname' is outside"),
-])
+@pytest.mark.parametrize(
+    "column, value, words",
+    [
+        ("level", "300", "must be in [0, 127], got 300.0"),
+        ("Fz_N", "nan", "must be a finite number, got nan"),
+        ("Mz_Nmm", "-inf", "must be a finite number, got -inf"),
+        ("x_mm", "1e300", "must be in [-10000.0, 10000.0], got 1e+300"),
+        ("phase", "stroke", "unknown phase 'stroke'; expected one of approach, press"),
+        ("file", "../../x.png", "'../../x.png' is outside"),
+        ("file", "/etc/hostname", "'/etc/hostname' is outside"),
+    ],
+)
 def test_import_rows_refused_naming_row_and_column(tmp_path, column, value, words):
     folder = import_folder(tmp_path)
     cv2.imwrite(str(tmp_path.parent / "x.png"), np.zeros((8, 8, 3), np.uint8))  # a readable file outside
@@ -327,8 +385,9 @@ def test_import_rows_refused_naming_row_and_column(tmp_path, column, value, word
 def test_import_mm_per_px_option_is_finite_and_named(tmp_path):
     folder = import_folder(tmp_path)
     for value in ("nan", "inf", "-0.06"):
-        result = runner.invoke(dataset_app, ["import", str(folder), "--out", str(tmp_path / "x.h5"),
-                                             "--mm-per-px", value])
+        result = runner.invoke(
+            dataset_app, ["import", str(folder), "--out", str(tmp_path / "x.h5"), "--mm-per-px", value]
+        )
         assert result.exit_code == 2 and "'--mm-per-px'" in result.output, result.output
     assert not (tmp_path / "x.h5").exists()
 
@@ -336,13 +395,17 @@ def test_import_mm_per_px_option_is_finite_and_named(tmp_path):
 # ---------------------------------------------------------------------------------------------
 # Finding 8: dataset split ratios.
 
-@pytest.mark.parametrize("ratio, words", [
-    ("8:2:0", "[test] must be > 0, got 0.0"),
-    ("0:1", "[train] must be > 0, got 0.0"),
-    ("nan:1", "[train] must be a finite number, got nan"),
-    ("1:inf", "[test] must be a finite number, got inf"),
-    ("1:2:3:4", "two or three parts"),
-])
+
+@pytest.mark.parametrize(
+    "ratio, words",
+    [
+        ("8:2:0", "[test] must be > 0, got 0.0"),
+        ("0:1", "[train] must be > 0, got 0.0"),
+        ("nan:1", "[train] must be a finite number, got nan"),
+        ("1:inf", "[test] must be a finite number, got inf"),
+        ("1:2:3:4", "two or three parts"),
+    ],
+)
 def test_bad_ratios_name_the_ratio_and_the_part(ratio, words):
     with pytest.raises(SplitError) as err:
         parse_ratios(ratio)
@@ -383,17 +446,21 @@ def test_too_few_frames_for_the_parts_is_a_clear_error(tmp_path):
 # ---------------------------------------------------------------------------------------------
 # Finding 8: numeric options of rig commands (checked before any device is opened).
 
-@pytest.mark.parametrize("args, option", [
-    (["jog", "--axis", "z", "--step", "nan"], "--step"),
-    (["jog", "--axis", "z", "--to", "inf"], "--to"),
-    (["jog", "--axis", "z", "--step", "1", "--speed", "inf"], "--speed"),
-    (["jog", "--axis", "z", "--step", "1", "--speed", "0"], "--speed"),
-    (["jog", "--axis", "z", "--key-step", "inf"], "--key-step"),
-    (["find-contact", "--speed", "inf"], "--speed"),
-    (["find-contact", "--max-travel", "nan"], "--max-travel"),
-    (["find-contact", "--threshold-n", "inf"], "--threshold-n"),
-    (["run-protocol", "sphere10mm", "--origin", "0,0,nan,0", "--dry-run"], "--origin"),
-])
+
+@pytest.mark.parametrize(
+    "args, option",
+    [
+        (["jog", "--axis", "z", "--step", "nan"], "--step"),
+        (["jog", "--axis", "z", "--to", "inf"], "--to"),
+        (["jog", "--axis", "z", "--step", "1", "--speed", "inf"], "--speed"),
+        (["jog", "--axis", "z", "--step", "1", "--speed", "0"], "--speed"),
+        (["jog", "--axis", "z", "--key-step", "inf"], "--key-step"),
+        (["find-contact", "--speed", "inf"], "--speed"),
+        (["find-contact", "--max-travel", "nan"], "--max-travel"),
+        (["find-contact", "--threshold-n", "inf"], "--threshold-n"),
+        (["run-protocol", "sphere10mm", "--origin", "0,0,nan,0", "--dry-run"], "--origin"),
+    ],
+)
 def test_numeric_rig_options_refuse_nan_inf_naming_the_option(tmp_path, args, option):
     missing = tmp_path / "no-such-rig.toml"  # were the option accepted, this would be the error instead
     result = runner.invoke(rig_app, [*args, "--config", str(missing)])
@@ -407,10 +474,12 @@ def test_numeric_rig_options_refuse_nan_inf_naming_the_option(tmp_path, args, op
 
 NASTY_FLOATS = st.one_of(
     st.floats(allow_nan=True, allow_infinity=True),
-    st.sampled_from([0.0, -0.0, 5e-324, 1e-300, 1e300, -1e300, math.nan, math.inf, -math.inf, 0.4, 1.6, 0.01]))
-NASTY_INTS = st.one_of(st.integers(), st.sampled_from([0, -1, 1, 2 ** 31, 2 ** 63, 10 ** 30]))
-NASTY_SCALARS = st.one_of(NASTY_FLOATS, NASTY_INTS, st.booleans(),
-                          st.text(alphabet=string.ascii_letters + string.digits + " .-", max_size=6))
+    st.sampled_from([0.0, -0.0, 5e-324, 1e-300, 1e300, -1e300, math.nan, math.inf, -math.inf, 0.4, 1.6, 0.01]),
+)
+NASTY_INTS = st.one_of(st.integers(), st.sampled_from([0, -1, 1, 2**31, 2**63, 10**30]))
+NASTY_SCALARS = st.one_of(
+    NASTY_FLOATS, NASTY_INTS, st.booleans(), st.text(alphabet=string.ascii_letters + string.digits + " .-", max_size=6)
+)
 NASTY = st.one_of(NASTY_SCALARS, st.lists(st.one_of(NASTY_FLOATS, NASTY_INTS), max_size=4))
 
 
@@ -427,21 +496,59 @@ def toml_value(v) -> str:
 
 
 def toml_doc(tables: dict[str, dict]) -> str:
-    return "\n".join(f"[{name}]\n" + "".join(f"{k} = {toml_value(v)}\n" for k, v in body.items())
-                     for name, body in tables.items())
+    return "\n".join(
+        f"[{name}]\n" + "".join(f"{k} = {toml_value(v)}\n" for k, v in body.items()) for name, body in tables.items()
+    )
 
 
 RIG = {
-    "axes.x": {"driver": "zaber", "port": "/dev/ttyUSB0", "baudrate": 115200, "device": 1, "axis_number": 1,
-               "scale": 0.000047625, "offset": -12.5, "travel": [-12.5, 12.5], "max_speed": 5.0, "jog_speed": 1.0,
-               "timeout_s": 0.5, "retries": 2},
-    "axes.theta": {"driver": "pr_drive", "unit": "deg", "port": "/dev/ttyUSB1", "baudrate": 38400, "device": 1,
-                   "pulses_per_rev": 10000, "travel_per_rev": 4.0, "offset": -180.0, "travel": [-90.0, 90.0],
-                   "max_speed": 30.0, "jog_speed": 5.0},
-    "gauge": {"driver": "ft300", "port": "/dev/ttyUSB2", "baudrate": 19200, "device_id": 9, "rate_hz": 100,
-              "timeout_s": 0.5, "retries": 2, "fresh_after_s": 0.05},
-    "camera": {"driver": "v4l2", "device": "/dev/video0", "width": 320, "height": 240, "fps": 25.0,
-               "exposure": 150.0, "white_balance_K": 4600.0, "discard_frames": 5, "mm_per_px": 0.0634},
+    "axes.x": {
+        "driver": "zaber",
+        "port": "/dev/ttyUSB0",
+        "baudrate": 115200,
+        "device": 1,
+        "axis_number": 1,
+        "scale": 0.000047625,
+        "offset": -12.5,
+        "travel": [-12.5, 12.5],
+        "max_speed": 5.0,
+        "jog_speed": 1.0,
+        "timeout_s": 0.5,
+        "retries": 2,
+    },
+    "axes.theta": {
+        "driver": "pr_drive",
+        "unit": "deg",
+        "port": "/dev/ttyUSB1",
+        "baudrate": 38400,
+        "device": 1,
+        "pulses_per_rev": 10000,
+        "travel_per_rev": 4.0,
+        "offset": -180.0,
+        "travel": [-90.0, 90.0],
+        "max_speed": 30.0,
+        "jog_speed": 5.0,
+    },
+    "gauge": {
+        "driver": "ft300",
+        "port": "/dev/ttyUSB2",
+        "baudrate": 19200,
+        "device_id": 9,
+        "timeout_s": 0.5,
+        "retries": 2,
+        "fresh_after_s": 0.05,
+    },
+    "camera": {
+        "driver": "v4l2",
+        "device": "/dev/video0",
+        "width": 320,
+        "height": 240,
+        "fps": 25.0,
+        "exposure": 150.0,
+        "white_balance_K": 4600.0,
+        "discard_frames": 5,
+        "mm_per_px": 0.0634,
+    },
     "safety": {"max_force_N": [5.0, 5.0, 25.0], "max_torque_Nmm": [200.0, 200.0, 100.0], "poll_s": 0.02},
     "pendant": {"vendor_id": 0x256F, "product_id": 0xC635, "deadband": 0.15},
 }
@@ -463,7 +570,11 @@ def all_numbers(obj):
         yield obj
 
 
-PROPERTY = settings(max_examples=int(os.environ.get("HOSTILE_EXAMPLES", 150)), deadline=None, suppress_health_check=[HealthCheck.too_slow])
+PROPERTY = settings(
+    max_examples=int(os.environ.get("HOSTILE_EXAMPLES", 150)),
+    deadline=None,
+    suppress_health_check=[HealthCheck.too_slow],
+)
 
 
 @PROPERTY
@@ -486,8 +597,16 @@ def test_property_rig_config_loads_or_names_file_and_key(edits):
 
 PROTOCOL = {
     "protocol": {"name": "prop", "object": "sphere10mm", "sensor": "rgb"},
-    "motion": {"depth_step_mm": 0.4, "max_depth_mm": 1.6, "shear_mm": 2.0, "twist_deg": 5.0, "speed_mm_s": 0.1,
-               "twist_speed_deg_s": 0.25, "approach_mm": 1.0, "approach_speed_mm_s": 0.5},
+    "motion": {
+        "depth_step_mm": 0.4,
+        "max_depth_mm": 1.6,
+        "shear_mm": 2.0,
+        "twist_deg": 5.0,
+        "speed_mm_s": 0.1,
+        "twist_speed_deg_s": 0.25,
+        "approach_mm": 1.0,
+        "approach_speed_mm_s": 0.5,
+    },
     "capture": {"rate_hz": 1.0},
 }
 PROTOCOL_NUMERIC = [(t, k) for t, body in PROTOCOL.items() for k, v in body.items() if not isinstance(v, str)]
@@ -514,10 +633,17 @@ CSV_NUMERIC = COLUMNS[1:12] + ["level"]
 
 
 @settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-@given(meta=st.fixed_dictionaries({}, optional={"mm_per_px": NASTY, "capture_hz": NASTY}),
-       cells=st.lists(st.tuples(st.integers(0, 1), st.sampled_from(CSV_NUMERIC + ["phase", "file"]),
-                                st.one_of(NASTY_SCALARS.map(str), st.sampled_from(["../x.png", "/x.png", "", "twist"]))),
-                      max_size=2))
+@given(
+    meta=st.fixed_dictionaries({}, optional={"mm_per_px": NASTY, "capture_hz": NASTY}),
+    cells=st.lists(
+        st.tuples(
+            st.integers(0, 1),
+            st.sampled_from(CSV_NUMERIC + ["phase", "file"]),
+            st.one_of(NASTY_SCALARS.map(str), st.sampled_from(["../x.png", "/x.png", "", "twist"])),
+        ),
+        max_size=2,
+    ),
+)
 def test_property_import_metadata_loads_or_names_file_and_key(meta, cells):
     with tempfile.TemporaryDirectory() as tmp, time_limit(10):
         folder = import_folder(Path(tmp), meta=meta)
@@ -530,7 +656,11 @@ def test_property_import_metadata_loads_or_names_file_and_key(meta, cells):
         except (ConfigError, RunFileError) as err:
             message = one_line(str(err))
             assert message.startswith(str(folder)), message
-            assert ("run.json: [" in message or "frames.csv: [row" in message or "frames.csv: row" in message
-                    or "frame" in message), message
+            assert (
+                "run.json: [" in message
+                or "frames.csv: [row" in message
+                or "frames.csv: row" in message
+                or "frame" in message
+            ), message
             return
         assert frames == 2

@@ -72,8 +72,9 @@ def imports(name: str) -> tuple[tuple[str, int], ...]:
         elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
             found.append((node.module, node.lineno))
             # `from pkg import module` imports a module too
-            found += [(f"{node.module}.{a.name}", node.lineno) for a in node.names
-                      if f"{node.module}.{a.name}" in modules()]
+            found += [
+                (f"{node.module}.{a.name}", node.lineno) for a in node.names if f"{node.module}.{a.name}" in modules()
+            ]
     return tuple(found)
 
 

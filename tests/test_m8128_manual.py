@@ -25,7 +25,8 @@ from rig.transport.serial_link import SerialLink
 
 # The manual's AT+GOD reply, byte for byte.
 MANUAL_FRAME = bytes.fromhex(
-    "AA 55 00 1B C4 C7 01 6A F4 C0 EF 7D 33 C0 49 62 C9 C0 A2 5C C6 BD A6 19 8F BD AF DA 69 3E 6E")
+    "AA 55 00 1B C4 C7 01 6A F4 C0 EF 7D 33 C0 49 62 C9 C0 A2 5C C6 BD A6 19 8F BD AF DA 69 3E 6E"
+)
 # The manual's decoded channels: forces (N), then moments (N·m).
 MANUAL_VALUES = [-7.637940, -2.804561, -6.293248, -0.096856, -0.069873, 0.228373]
 
@@ -59,15 +60,18 @@ def scripted(serve):
         device = ScriptedDevice(exchanges)
         server = serve(device, SystemClock())
         return device, M8128(SerialLink(server.url, baudrate=115200, timeout_s=0.3, device="m8128"), SystemClock())
+
     return make
 
 
 def test_configure_and_god_byte_exact(scripted):
-    device, g = scripted([
-        (b"AT+SMPF=100\r\n", b"ACK+SMPF=100$OK\r\n"),
-        (b"AT+DCKMD=SUM\r\n", b"ACK+DCKMD=SUM$OK\r\n"),  # the manual's example reply
-        (b"AT+GOD\r\n", MANUAL_FRAME),
-    ])
+    device, g = scripted(
+        [
+            (b"AT+SMPF=100\r\n", b"ACK+SMPF=100$OK\r\n"),
+            (b"AT+DCKMD=SUM\r\n", b"ACK+DCKMD=SUM$OK\r\n"),  # the manual's example reply
+            (b"AT+GOD\r\n", MANUAL_FRAME),
+        ]
+    )
     g.configure()
     w = g.read()
     np.testing.assert_allclose(w.as_array(), np.array(MANUAL_VALUES) * [1, 1, 1, 1000, 1000, 1000], atol=1e-3)

@@ -31,8 +31,9 @@ def test_ssim_matches_scikit_image_with_the_reference_settings(pair):
     from skimage.metrics import structural_similarity
 
     a, b = pair
-    expected = structural_similarity(a, b, gaussian_weights=True, sigma=1.5, use_sample_covariance=False,
-                                     data_range=255, channel_axis=2)
+    expected = structural_similarity(
+        a, b, gaussian_weights=True, sigma=1.5, use_sample_covariance=False, data_range=255, channel_axis=2
+    )
     assert ssim(a, b) == pytest.approx(expected, abs=1e-6)
     assert ssim(a, a) == pytest.approx(1.0)
 
@@ -58,7 +59,8 @@ def test_marker_error_measures_a_known_displacement():
     assert err.per_marker_px == pytest.approx(2.0, abs=0.05) and err.total_px == pytest.approx(648, rel=0.03)
     pressed = scene.frame(Pose(0.3, 0, -1.0, 0)).image
     moved = scene.contact.solver.solve(Pose(0.3, 0, -1.0, 0), shift_mm=(0.3, 0.0), fields={"uz", "uxy"})
-    assert marker_error(still, scene.renderer.render(moved.fields)).per_marker_px > marker_error(still, pressed).per_marker_px
+    moved_px = marker_error(still, scene.renderer.render(moved.fields)).per_marker_px
+    assert moved_px > marker_error(still, pressed).per_marker_px
 
 
 def test_marker_flow_and_its_figure(tmp_path):
@@ -74,14 +76,15 @@ def test_marker_flow_and_its_figure(tmp_path):
     start, end = marker_flow(still, np.roll(still, (1, 3), axis=(0, 1)))  # 3 px right, 1 px down
     assert len(start) == 324
     assert np.allclose((end - start).mean(axis=0), (3.0, 1.0), atol=0.05)
-    sheared = scene.renderer.render(scene.contact.solver.solve(Pose(0, 0, -1.0, 0), shift_mm=(0.4, 0.0),
-                                                                fields={"uz", "uxy"}).fields)
+    sheared = scene.renderer.render(
+        scene.contact.solver.solve(Pose(0, 0, -1.0, 0), shift_mm=(0.4, 0.0), fields={"uz", "uxy"}).fields
+    )
     row = Row("ddim, 10 steps", 1.0, 1.0, 0.9, 40.0, 0.5, 0.01, 1)
-    ev = Evaluation([row], None, "", True, examples={"real": [sheared], "ddim, 10 steps": [still]},
-                    references=[still])
+    ev = Evaluation([row], None, "", True, examples={"real": [sheared], "ddim, 10 steps": [still]}, references=[still])
     assert marker_flow_figure(ev, tmp_path / "flow.png")
     flow = cv2.imread(str(tmp_path / "flow.png"))
     assert flow.shape[1] == 2 * still.shape[1]  # real and model panels side by side
-    blank = Evaluation([row], None, "", True, examples={"real": [np.zeros_like(still)], "ddim, 10 steps": [still]},
-                       references=[still])
+    blank = Evaluation(
+        [row], None, "", True, examples={"real": [np.zeros_like(still)], "ddim, 10 steps": [still]}, references=[still]
+    )
     assert not marker_flow_figure(blank, tmp_path / "none.png")  # no markers: no figure, no crash

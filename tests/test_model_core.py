@@ -7,7 +7,9 @@ from model.config import ModelConfig, preset
 from model.diffusion import Diffusion
 from model.network import ContactDenoiser, wrench_plane
 
-SMALL = ModelConfig(image_size=16, block_out_channels=(16, 32), layers_per_block=1, train_timesteps=100, cond_dropout=0.0)
+SMALL = ModelConfig(
+    image_size=16, block_out_channels=(16, 32), layers_per_block=1, train_timesteps=100, cond_dropout=0.0
+)
 
 
 def pairs(n=4, size=16, seed=0):
@@ -18,8 +20,8 @@ def pairs(n=4, size=16, seed=0):
     wrench = torch.randn(n, 6, generator=g)
     for i in range(n):
         r, c = 4 + 3 * (i % 3), 4 + 2 * i % 8
-        cond[i, :, r:r + 4, c:c + 4] = 1.0
-        tactile[i, 0, r:r + 4, c:c + 4] = torch.tanh(wrench[i, 2])
+        cond[i, :, r : r + 4, c : c + 4] = 1.0
+        tactile[i, 0, r : r + 4, c : c + 4] = torch.tanh(wrench[i, 2])
     return tactile, cond, wrench
 
 
@@ -41,8 +43,11 @@ def test_bad_wrenches_and_mismatched_images_are_clear_errors():
     net = ContactDenoiser(SMALL)
     tactile, cond, wrench = pairs()
     t = torch.zeros(4, dtype=torch.long)
-    for bad, words in ((wrench[:, :5], "must be \\(batch, 6\\)"), (wrench * float("nan"), "NaN"),
-                       (wrench * 1e6, "absurd")):
+    for bad, words in (
+        (wrench[:, :5], "must be \\(batch, 6\\)"),
+        (wrench * float("nan"), "NaN"),
+        (wrench * 1e6, "absurd"),
+    ):
         with pytest.raises(ValueError, match=words):
             net(tactile, t, cond, bad)
     with pytest.raises(ValueError, match="must match the tactile image"):
@@ -95,17 +100,32 @@ def make_split_dir(tmp_path, n=24, size=16):
 
     from acquisition.run_file import RunHeader, RunWriter
     from dataset.split import make_split
-    from protocols.plan import PHASES
     from objects.indenters import get_indenter
+    from protocols.plan import PHASES
 
     rng = np.random.default_rng(0)
     header = RunHeader("t", "", "", "sphere10mm", "", "rgb", 14 / size, 1.0, n, (0, 0, 0, 0), PHASES)
-    w = RunWriter.create(tmp_path / "r.h5", header, (size, size, 3), get_indenter("sphere10mm").object_image(size, 14 / size),
-                         np.zeros((size, size, 3), np.uint8))
+    w = RunWriter.create(
+        tmp_path / "r.h5",
+        header,
+        (size, size, 3),
+        get_indenter("sphere10mm").object_image(size, 14 / size),
+        np.zeros((size, size, 3), np.uint8),
+    )
     for i in range(n):
-        w.append(rng.integers(0, 256, (size, size, 3), dtype=np.uint8), wrench=rng.normal(size=6),
-                 pose_commanded=np.zeros(4), pose_measured=np.array([0.1 * i, 0, -1, 0]), t_frame_s=float(i),
-                 t_capture_s=float(i), wrench_skew_s=0.0, capture_index=i, step_index=0, phase_index=1, level=1)
+        w.append(
+            rng.integers(0, 256, (size, size, 3), dtype=np.uint8),
+            wrench=rng.normal(size=6),
+            pose_commanded=np.zeros(4),
+            pose_measured=np.array([0.1 * i, 0, -1, 0]),
+            t_frame_s=float(i),
+            t_capture_s=float(i),
+            wrench_skew_s=0.0,
+            capture_index=i,
+            step_index=0,
+            phase_index=1,
+            level=1,
+        )
     w.set_status("complete")
     w.close()
     make_split([tmp_path / "r.h5"], "8:2", tmp_path / "split")
@@ -113,32 +133,36 @@ def make_split_dir(tmp_path, n=24, size=16):
 
 
 def test_resume_continues_with_the_same_losses(tmp_path):
-    from model.trainer import CheckpointError, TrainConfig, Trainer
+    from model.build import build
+    from model.checkpoint import CheckpointError
+    from model.trainer import TrainConfig
 
     split = make_split_dir(tmp_path)
     # validation samples every 3 steps in both runs: sampling must not disturb training's state
     cfg = TrainConfig(steps=8, batch_size=4, checkpoint_every=4, seed=3, sample_every=3, samples=2, sample_steps=2)
-    straight = Trainer(SMALL, cfg, split, tmp_path / "a", log=lambda m: None).train()
+    straight = build(SMALL, cfg, split, tmp_path / "a", log=lambda m: None).train()
     assert sorted(p.name for p in (tmp_path / "a" / "samples").iterdir()) == ["step-000003.png", "step-000006.png"]
-    first = Trainer(SMALL, cfg, split, tmp_path / "b", log=lambda m: None)
+    first = build(SMALL, cfg, split, tmp_path / "b", log=lambda m: None)
     first.train(until=4)  # saves a checkpoint at step 4
-    second = Trainer(SMALL, cfg, split, tmp_path / "b", log=lambda m: None)
+    second = build(SMALL, cfg, split, tmp_path / "b", log=lambda m: None)
     second.resume()
     assert second.step == 4
     resumed = second.train()
     assert resumed == pytest.approx(straight, rel=1e-5)  # same data order, noise, optimizer state
     other = ModelConfig(**{**SMALL.__dict__, "block_out_channels": (16, 16)})
     with pytest.raises(CheckpointError, match="different model config"):
-        Trainer(other, cfg, split, tmp_path / "b", log=lambda m: None).resume()
+        build(other, cfg, split, tmp_path / "b", log=lambda m: None).resume()
 
 
 def trained_run(tmp_path, steps):
     """A split and a tiny run trained on it for ``steps`` steps, saved: (split dir, run dir)."""
-    from model.trainer import TrainConfig, Trainer
+    from model.build import build
+    from model.trainer import TrainConfig
 
     split = make_split_dir(tmp_path)
-    trainer = Trainer(SMALL, TrainConfig(steps=steps, batch_size=4, checkpoint_every=100), split, tmp_path / "run",
-                      log=lambda m: None)
+    trainer = build(
+        SMALL, TrainConfig(steps=steps, batch_size=4, checkpoint_every=100), split, tmp_path / "run", log=lambda m: None
+    )
     trainer.train()
     trainer.save()
     return split, tmp_path / "run"
@@ -147,8 +171,8 @@ def trained_run(tmp_path, steps):
 def test_generate_from_a_trained_run(tmp_path):
     import numpy as np
 
+    from model.checkpoint import CheckpointError
     from model.inference import TrainedModel
-    from model.trainer import CheckpointError
 
     _, run = trained_run(tmp_path, 3)
     model = TrainedModel.load(run)
@@ -178,7 +202,10 @@ def test_evaluate_writes_the_report_with_the_physics_render_row(tmp_path):
     assert set(ev.examples) == {"object at pose", "real", "physics render", "ddim, 3 steps", "ddpm, 4 steps"}
     path = report(ev, tmp_path / "report", title="test")
     text = path.read_text()
-    assert "| this model (ddim, 3 steps) |" in text and "| paper, RGB light (paper's table, real data, 256 px) | 21.0 |" in text
+    assert (
+        "| this model (ddim, 3 steps) |" in text
+        and "| paper, RGB light (paper's table, real data, 256 px) | 21.0 |" in text
+    )
     assert "| physics render: the simulator's mechanics + lighting at the measured pose |" in text
     for png in ("error_vs_time.png", "samples.png"):
         assert (tmp_path / "report" / png).stat().st_size > 1000
@@ -194,9 +221,9 @@ def test_physics_render_reproduces_a_simulated_frame(tmp_path):
     from model.baseline import render_frames
     from model.metrics import image_metrics
     from objects.pose import Pose
-    from sensor_sim.world_contact import rig_contact
     from sensor_sim.light import OpticsSpec
     from sensor_sim.optics import Renderer
+    from sensor_sim.world_contact import rig_contact
 
     contact = rig_contact("sphere10mm")
     renderer = Renderer(OpticsSpec(kind="rgb", height_px=64, width_px=64, noise_std=1.0), contact.solver.geometry)
@@ -213,15 +240,27 @@ def _one_frame_run(tmp_path, frame, reference, pose):
     import numpy as np
 
     from acquisition.run_file import RunHeader, RunWriter
-    from protocols.plan import PHASES
     from objects.indenters import get_indenter
+    from protocols.plan import PHASES
 
     size = frame.shape[0]
     header = RunHeader("t", "", "", "sphere10mm", "", "rgb", 14 / size, 1.0, 1, (0, 0, 0, 0), PHASES)
-    w = RunWriter.create(tmp_path / "one.h5", header, frame.shape, get_indenter("sphere10mm").object_image(size, 14 / size),
-                         reference)
-    w.append(frame, wrench=np.zeros(6), pose_commanded=pose, pose_measured=pose, t_frame_s=0.0, t_capture_s=0.0,
-             wrench_skew_s=0.0, capture_index=0, step_index=0, phase_index=1, level=1)
+    w = RunWriter.create(
+        tmp_path / "one.h5", header, frame.shape, get_indenter("sphere10mm").object_image(size, 14 / size), reference
+    )
+    w.append(
+        frame,
+        wrench=np.zeros(6),
+        pose_commanded=pose,
+        pose_measured=pose,
+        t_frame_s=0.0,
+        t_capture_s=0.0,
+        wrench_skew_s=0.0,
+        capture_index=0,
+        step_index=0,
+        phase_index=1,
+        level=1,
+    )
     w.set_status("complete")
     w.close()
     return tmp_path / "one.h5"
@@ -249,10 +288,13 @@ def test_train_command_reads_a_model_toml_and_names_bad_keys(tmp_path):
 
     split = make_split_dir(tmp_path)
     good = tmp_path / "model.toml"
-    good.write_text('preset = "tiny"\n[model]\nimage_size = 16\nblock_out_channels = [16, 32]\nconditioning = "plane"\n'
-                    "train_timesteps = 100\n[train]\nsteps = 3\nbatch_size = 4\nsample_every = 0\n")
-    result = CliRunner().invoke(app, ["--data", str(split), "--out", str(tmp_path / "run"), "--config", str(good),
-                                      "--steps", "2"])
+    good.write_text(
+        'preset = "tiny"\n[model]\nimage_size = 16\nblock_out_channels = [16, 32]\nconditioning = "plane"\n'
+        "train_timesteps = 100\n[train]\nsteps = 3\nbatch_size = 4\nsample_every = 0\n"
+    )
+    result = CliRunner().invoke(
+        app, ["--data", str(split), "--out", str(tmp_path / "run"), "--config", str(good), "--steps", "2"]
+    )
     assert result.exit_code == 0, result.output
     meta = json.loads((tmp_path / "run" / "checkpoint" / "state.json").read_text())
     assert meta["step"] == 2  # the command line wins over the file
@@ -262,7 +304,7 @@ def test_train_command_reads_a_model_toml_and_names_bad_keys(tmp_path):
     bad.write_text("[model]\nimage_sise = 64\n")
     result = CliRunner().invoke(app, ["--data", str(split), "--out", str(tmp_path / "x"), "--config", str(bad)])
     assert result.exit_code == 1 and "bad.toml" in result.output and "model.image_sise" in result.output
-    bad.write_text("[train]\nsteps = \"many\"\n")
+    bad.write_text('[train]\nsteps = "many"\n')
     result = CliRunner().invoke(app, ["--data", str(split), "--out", str(tmp_path / "x"), "--config", str(bad)])
     assert result.exit_code == 1 and "train.steps" in result.output and "int" in result.output
 
@@ -274,7 +316,7 @@ def test_loss_targets_and_samplers_agree_for_each_prediction(prediction):
     cfg = ModelConfig(**{**SMALL.__dict__, "prediction": prediction})
     diff = Diffusion(cfg)
     clean = torch.rand(2, 3, 16, 16) * 1.6 - 0.8
-    ab = diff.train_scheduler.alphas_cumprod
+    ab = diff.alpha_bar
 
     def oracle(noisy, t, condition, wrench):
         a = ab[t].view(-1, 1, 1, 1)
@@ -289,7 +331,9 @@ def test_loss_targets_and_samplers_agree_for_each_prediction(prediction):
         assert torch.allclose(out, clean, atol=2e-3), sampler
     wrong = "sample" if prediction != "sample" else "epsilon"
     cfg_wrong = ModelConfig(**{**SMALL.__dict__, "prediction": wrong})
-    assert Diffusion(cfg_wrong).loss(oracle, clean, cond, wrench, generator=torch.Generator().manual_seed(0)).item() > 1e-2
+    assert (
+        Diffusion(cfg_wrong).loss(oracle, clean, cond, wrench, generator=torch.Generator().manual_seed(0)).item() > 1e-2
+    )
 
 
 def test_the_example_model_files_in_docs_load():
@@ -323,11 +367,40 @@ def test_two_processes_train_through_accelerate(tmp_path):
     with socket.socket() as s:  # a free port for the rendezvous
         s.bind(("127.0.0.1", 0))
         port = s.getsockname()[1]
-    cmd = [str(torchrun), "--nproc_per_node", "2", "--master_addr", "127.0.0.1", "--master_port", str(port),
-           "-m", "cli.model_app", "--data", str(split), "--out", str(tmp_path / "run"), "--config", str(cfg),
-           "--steps", "4", "--batch-size", "4", "--sample-every", "2", "--device", "cpu"]
-    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
-                            cwd=Path(__file__).parent.parent, start_new_session=True)
+    cmd = [
+        str(torchrun),
+        "--nproc_per_node",
+        "2",
+        "--master_addr",
+        "127.0.0.1",
+        "--master_port",
+        str(port),
+        "-m",
+        "cli.model_app",
+        "--data",
+        str(split),
+        "--out",
+        str(tmp_path / "run"),
+        "--config",
+        str(cfg),
+        "--steps",
+        "4",
+        "--batch-size",
+        "4",
+        "--sample-every",
+        "2",
+        "--device",
+        "cpu",
+    ]
+    proc = subprocess.Popen(
+        cmd,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=env,
+        cwd=Path(__file__).parent.parent,
+        start_new_session=True,
+    )
     try:
         stdout, stderr = proc.communicate(timeout=100)
     except subprocess.TimeoutExpired:
@@ -351,23 +424,69 @@ def test_generate_and_evaluate_commands(tmp_path):
     split, run = trained_run(tmp_path, 2)
     obj = tmp_path / "obj.png"
     cv2.imwrite(str(obj), np.full((40, 40, 3), 200, np.uint8))
-    r = CliRunner().invoke(generate_app, ["--checkpoint", str(run), "--object", str(obj), "--wrench", "0,0,2,0,0,0",
-                                          "--out", str(tmp_path / "f.png"), "--steps", "2"])
+    r = CliRunner().invoke(
+        generate_app,
+        [
+            "--checkpoint",
+            str(run),
+            "--object",
+            str(obj),
+            "--wrench",
+            "0,0,2,0,0,0",
+            "--out",
+            str(tmp_path / "f.png"),
+            "--steps",
+            "2",
+        ],
+    )
     assert r.exit_code == 0, r.output
     assert cv2.imread(str(tmp_path / "f.png")).shape == (16, 16, 3)
-    r = CliRunner().invoke(generate_app, ["--checkpoint", str(run), "--object", str(obj), "--wrench", "0,0,2",
-                                          "--out", str(tmp_path / "g.png")])
+    r = CliRunner().invoke(
+        generate_app,
+        ["--checkpoint", str(run), "--object", str(obj), "--wrench", "0,0,2", "--out", str(tmp_path / "g.png")],
+    )
     assert r.exit_code != 0 and "6 comma-separated numbers" in r.output
     r = CliRunner().invoke(generate_app, ["--checkpoint", str(run), "--out", str(tmp_path / "g.png")])
     assert r.exit_code != 0 and "--split" in r.output
-    r = CliRunner().invoke(generate_app, ["--checkpoint", str(run), "--split", str(split), "--out", str(tmp_path / "gen"),
-                                          "--steps", "2", "--limit", "3"])
+    r = CliRunner().invoke(
+        generate_app,
+        [
+            "--checkpoint",
+            str(run),
+            "--split",
+            str(split),
+            "--out",
+            str(tmp_path / "gen"),
+            "--steps",
+            "2",
+            "--limit",
+            "3",
+        ],
+    )
     assert r.exit_code == 0, r.output
     assert len(list((tmp_path / "gen").glob("*.png"))) == 3
-    r = CliRunner().invoke(evaluate_app, ["--checkpoint", str(run), "--split", str(split), "--out", str(tmp_path / "rep"),
-                                          "--settings", "ddim:2", "--limit", "2", "--no-baseline"])
+    r = CliRunner().invoke(
+        evaluate_app,
+        [
+            "--checkpoint",
+            str(run),
+            "--split",
+            str(split),
+            "--out",
+            str(tmp_path / "rep"),
+            "--settings",
+            "ddim:2",
+            "--limit",
+            "2",
+            "--no-baseline",
+        ],
+    )
     assert r.exit_code == 0, r.output
-    assert "report:" in r.output and "No physics-render row: not asked for" in (tmp_path / "rep" / "report.md").read_text()
-    r = CliRunner().invoke(evaluate_app, ["--checkpoint", str(run), "--split", str(split), "--out", str(tmp_path / "rep"),
-                                          "--settings", "ddim"])
+    assert (
+        "report:" in r.output and "No physics-render row: not asked for" in (tmp_path / "rep" / "report.md").read_text()
+    )
+    r = CliRunner().invoke(
+        evaluate_app,
+        ["--checkpoint", str(run), "--split", str(split), "--out", str(tmp_path / "rep"), "--settings", "ddim"],
+    )
     assert r.exit_code != 0 and "sampler:steps" in r.output

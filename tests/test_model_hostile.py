@@ -34,8 +34,10 @@ def _copy(run, tmp_path):
 def _generate(run, obj, out):
     from cli.model_app import generate_app
 
-    return CliRunner().invoke(generate_app, ["--checkpoint", str(run), "--object", str(obj), "--wrench",
-                                             "0,0,2,0,0,0", "--out", str(out), "--steps", "2"])
+    return CliRunner().invoke(
+        generate_app,
+        ["--checkpoint", str(run), "--object", str(obj), "--wrench", "0,0,2,0,0,0", "--out", str(out), "--steps", "2"],
+    )
 
 
 def _one_line_error(result, *needles):
@@ -48,8 +50,11 @@ def _one_line_error(result, *needles):
         assert needle in lines[0], lines[0]
 
 
-@pytest.mark.parametrize("content", [b"", b"\x00\x01garbage" * 40, pickle.dumps({"weight": [1, 2, 3]})],
-                         ids=["empty", "random-bytes", "pickle"])
+@pytest.mark.parametrize(
+    "content",
+    [b"", b"\x00\x01garbage" * 40, pickle.dumps({"weight": [1, 2, 3]})],
+    ids=["empty", "random-bytes", "pickle"],
+)
 def test_damaged_weights_are_named(run, tmp_path, content):
     _, trained, obj = run
     copy, ck = _copy(trained, tmp_path)
@@ -58,13 +63,16 @@ def test_damaged_weights_are_named(run, tmp_path, content):
     assert not (tmp_path / "f.png").exists()
 
 
-@pytest.mark.parametrize("edit,needle", [
-    (lambda m: m["model"].update(unknown_knob=3), "unknown key(s) 'unknown_knob'"),
-    (lambda m: m.update(step=-1), "[step]"),
-    (lambda m: m.update(wrench_std=[0, 1, 1, 1, 1, 1]), "[wrench_std]"),
-    (lambda m: m.update(mm_per_px="x"), "[mm_per_px]"),
-    (lambda m: m["model"].update(conditioning="telepathy"), "conditioning must be one of"),
-])
+@pytest.mark.parametrize(
+    "edit,needle",
+    [
+        (lambda m: m["model"].update(unknown_knob=3), "unknown key(s) 'unknown_knob'"),
+        (lambda m: m.update(step=-1), "[step]"),
+        (lambda m: m.update(wrench_std=[0, 1, 1, 1, 1, 1]), "[wrench_std]"),
+        (lambda m: m.update(mm_per_px="x"), "[mm_per_px]"),
+        (lambda m: m["model"].update(conditioning="telepathy"), "conditioning must be one of"),
+    ],
+)
 def test_state_json_is_checked_before_use(run, tmp_path, edit, needle):
     _, trained, obj = run
     copy, ck = _copy(trained, tmp_path)
@@ -82,16 +90,17 @@ def test_state_json_that_is_not_json(run, tmp_path):
 
 
 def test_resume_from_a_damaged_optimizer_file_is_named(run, tmp_path):
+    from model.build import build
     from model.checkpoint import CheckpointError
     from model.config import ModelConfig
-    from model.trainer import TrainConfig, Trainer
+    from model.trainer import TrainConfig
 
     split, trained, _ = run
     copy, ck = _copy(trained, tmp_path)
     (ck / "optimizer.safetensors").write_bytes(b"\xff" * 100)
     meta = json.loads((ck / "state.json").read_text())
     cfg = ModelConfig(**{k: tuple(v) if isinstance(v, list) else v for k, v in meta["model"].items()})
-    trainer = Trainer(cfg, TrainConfig(steps=4, batch_size=4), split, copy, log=lambda m: None)
+    trainer = build(cfg, TrainConfig(steps=4, batch_size=4), split, copy, log=lambda m: None)
     with pytest.raises(CheckpointError, match="optimizer.safetensors: not a safetensors file"):
         trainer.resume()
 
@@ -113,8 +122,21 @@ def test_evaluate_on_a_missing_split_names_it(run, tmp_path):
     from cli.model_app import evaluate_app
 
     _, trained, _ = run
-    r = CliRunner().invoke(evaluate_app, ["--checkpoint", str(trained), "--split", str(tmp_path / "nowhere"),
-                                          "--out", str(tmp_path / "rep"), "--settings", "ddim:2", "--limit", "2"])
+    r = CliRunner().invoke(
+        evaluate_app,
+        [
+            "--checkpoint",
+            str(trained),
+            "--split",
+            str(tmp_path / "nowhere"),
+            "--out",
+            str(tmp_path / "rep"),
+            "--settings",
+            "ddim:2",
+            "--limit",
+            "2",
+        ],
+    )
     _one_line_error(r, "nowhere")
     assert not (tmp_path / "rep").exists()
 
@@ -125,15 +147,55 @@ def test_generate_takes_a_library_object_or_a_run_file_and_a_size(run, tmp_path)
     split, trained, _ = run
     run_file = json.loads((split / "split.json").read_text())["runs"][0]["path"]
     for source in ("sphere10mm", run_file):
-        r = CliRunner().invoke(generate_app, ["--checkpoint", str(trained), "--object", source, "--wrench",
-                                              "0,0,2,0,0,0", "--out", str(tmp_path / "f.png"), "--steps", "2",
-                                              "--size", "48", "--device", "cpu"])
+        r = CliRunner().invoke(
+            generate_app,
+            [
+                "--checkpoint",
+                str(trained),
+                "--object",
+                source,
+                "--wrench",
+                "0,0,2,0,0,0",
+                "--out",
+                str(tmp_path / "f.png"),
+                "--steps",
+                "2",
+                "--size",
+                "48",
+                "--device",
+                "cpu",
+            ],
+        )
         assert r.exit_code == 0, r.output
         assert "48x48 (upsampled from the model's 16x16)" in r.output
         assert cv2.imread(str(tmp_path / "f.png")).shape == (48, 48, 3)
-    r = CliRunner().invoke(generate_app, ["--checkpoint", str(trained), "--object", "teapot", "--wrench",
-                                          "0,0,2,0,0,0", "--out", str(tmp_path / "f.png")])
+    r = CliRunner().invoke(
+        generate_app,
+        [
+            "--checkpoint",
+            str(trained),
+            "--object",
+            "teapot",
+            "--wrench",
+            "0,0,2,0,0,0",
+            "--out",
+            str(tmp_path / "f.png"),
+        ],
+    )
     _one_line_error(r, "'teapot'", "sphere10mm")
-    r = CliRunner().invoke(generate_app, ["--checkpoint", str(trained), "--object", "sphere10mm", "--wrench",
-                                          "0,0,2,0,0,0", "--out", str(tmp_path / "f.png"), "--device", "tpu"])
+    r = CliRunner().invoke(
+        generate_app,
+        [
+            "--checkpoint",
+            str(trained),
+            "--object",
+            "sphere10mm",
+            "--wrench",
+            "0,0,2,0,0,0",
+            "--out",
+            str(tmp_path / "f.png"),
+            "--device",
+            "tpu",
+        ],
+    )
     _one_line_error(r, "--device")

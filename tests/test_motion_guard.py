@@ -1,4 +1,4 @@
-"""The one guarded motion path (issue 12, findings 1, 3 and 4): every move happens in a
+"""The one guarded motion path: every move happens in a
 motion session that arms the limits, checks the wrench after the last axis went idle,
 and stops and lifts on any way out: return, exception, SIGINT, SIGTERM, SIGHUP."""
 
@@ -13,22 +13,22 @@ import time
 from pathlib import Path
 
 import pytest
+from test_acquisition import QUICK
 from typer.testing import CliRunner
 
 import rig.rig as rig_module
 from acquisition import schema as S
 from acquisition.executor import Acquisition
 from acquisition.run_file import RunWriter, open_for_reading
+from cli.rig_app import app
 from cli.simulated import monitor_interval_s, simulated_rig_for
 from protocols.plan import Plan
 from protocols.spec import load_protocol
-from cli.rig_app import app
 from rig.clock import ManualClock
 from rig.errors import ForceLimitExceeded, SafetyError
 from rig.motion import AXIS_MOTION_METHODS, active_sessions
 from rig.rig import Rig
 from rig.sim.rig_sim import SimulatedRig
-from test_acquisition import QUICK
 
 ROOT = Path(__file__).resolve().parents[1]
 RIG_BIN = str(Path(sys.executable).parent / "rig")
@@ -49,8 +49,11 @@ def test_no_module_but_the_motion_module_calls_an_axis_motion_method():
             if rel == "rig/motion.py" or rel.startswith(BELOW_THE_RIG):
                 continue
             for node in ast.walk(ast.parse(path.read_text(), rel)):
-                if (isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute)
-                        and node.func.attr in AXIS_MOTION_METHODS):
+                if (
+                    isinstance(node, ast.Call)
+                    and isinstance(node.func, ast.Attribute)
+                    and node.func.attr in AXIS_MOTION_METHODS
+                ):
                     offenders.append(f"{rel}:{node.lineno} calls .{node.func.attr}()")
     assert offenders == [], "motion outside rig/motion.py:\n" + "\n".join(offenders)
 
@@ -107,13 +110,16 @@ def guarded_axes(monkeypatch):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("args, stdin, expected", [
-    (["jog", "--axis", "z", "--step", "-0.5"], None, {("z", "move_to")}),
-    (["jog", "--axis", "x", "--to", "1.5"], None, {("x", "move_to")}),
-    (["jog", "--axis", "y"], "++-q", {("y", "move_to")}),
-    (["home", "--axis", "z", "--axis", "theta"], None, {("z", "home"), ("theta", "home")}),
-    (["find-contact", "--speed", "2"], None, {("z", "move_to")}),
-])
+@pytest.mark.parametrize(
+    "args, stdin, expected",
+    [
+        (["jog", "--axis", "z", "--step", "-0.5"], None, {("z", "move_to")}),
+        (["jog", "--axis", "x", "--to", "1.5"], None, {("x", "move_to")}),
+        (["jog", "--axis", "y"], "++-q", {("y", "move_to")}),
+        (["home", "--axis", "z", "--axis", "theta"], None, {("z", "home"), ("theta", "home")}),
+        (["find-contact", "--speed", "2"], None, {("z", "move_to")}),
+    ],
+)
 def test_every_moving_command_goes_through_the_session(guarded_axes, args, stdin, expected):
     result = CliRunner().invoke(app, [*args, "--sim"], input=stdin)
     assert result.exit_code == 0, result.output
@@ -121,10 +127,11 @@ def test_every_moving_command_goes_through_the_session(guarded_axes, args, stdin
 
 
 def test_pendant_jogging_goes_through_the_session(guarded_axes):
-    from rig.clock import ScaledClock
-    from cli.interactive import jog_with_pendant
-    from rig.drivers.spacemouse import SpaceMouse
     from test_spacemouse import FakeHid
+
+    from cli.interactive import jog_with_pendant
+    from rig.clock import ScaledClock
+    from rig.drivers.spacemouse import SpaceMouse
 
     # Cap pulled up for one poll, released, then button 1 (quit): the recorded reports of test_spacemouse.
     reports = [bytes.fromhex("01 0000 0000 a2fe"), bytes.fromhex("01 0000 0000 0000"), bytes.fromhex("03 01 00")]
@@ -150,6 +157,7 @@ def test_a_protocol_run_goes_through_the_session(guarded_axes, tmp_path):
 
 
 # -- finding 3: the wrench after the last axis went idle must pass -------------------------
+
 
 class LaggingGauge:
     """The real gauge driver, but ``read`` answers with the sample of the previous read,
@@ -210,6 +218,7 @@ def test_the_cli_exits_non_zero_on_an_end_of_move_overload(monkeypatch, step):
 
     clock = ManualClock()
     with SimulatedRig(clock) as sim:
+
         @contextlib.contextmanager
         def open_pressed(*_args, **_kwargs):
             rig = pressed_rig(clock, sim)
@@ -228,6 +237,7 @@ def test_the_cli_exits_non_zero_on_an_end_of_move_overload(monkeypatch, step):
 
 # -- finding 4: an exception that is not the rig's own still stops and retracts -----------
 
+
 @pytest.fixture
 def quick(tmp_path):
     path = tmp_path / "quick.toml"
@@ -239,8 +249,12 @@ def run_with_fault(protocol, out, arm):
     """Run ``protocol`` with ``arm(rig, progress_frame)`` called at every frame; returns
     the error raised, the stage positions and whether anything still moved afterwards."""
     with simulated_rig_for(protocol) as (rig, sim, header):
-        acq = Acquisition(rig, Plan.of(protocol), monitor_interval_s=monitor_interval_s(protocol),
-                          progress=lambda p: arm(rig, p.frame))
+        acq = Acquisition(
+            rig,
+            Plan.of(protocol),
+            monitor_interval_s=monitor_interval_s(protocol),
+            progress=lambda p: arm(rig, p.frame),
+        )
         with pytest.raises(ValueError) as err:
             acq.run(out, header=header)
         busy = [n for n, s in sim.world.stages.items() if s.busy(sim.clock.now())]
@@ -252,8 +266,10 @@ def test_a_drivers_value_error_mid_run_stops_retracts_and_is_recorded(quick, tmp
 
     def arm(rig, frame):
         if frame == 10:  # pressed into the gel, x and y about to shear
+
             def broken_status():
                 raise ValueError("not enough values to unpack (expected 2, got 1)")
+
             rig.axes["x"].status = broken_status
 
     error, final, busy, wrench = run_with_fault(quick, out, arm)
@@ -263,8 +279,9 @@ def test_a_drivers_value_error_mid_run_stops_retracts_and_is_recorded(quick, tmp
     assert abs(wrench[2]) < 0.01
     with open_for_reading(out) as f:
         assert f[S.STATUS][()] == b"aborted"
-        assert f[S.STATUS_REASON][()].decode() == ("aborted: ValueError: not enough values to unpack "
-                                                   "(expected 2, got 1)")
+        assert f[S.STATUS_REASON][()].decode() == (
+            "aborted: ValueError: not enough values to unpack (expected 2, got 1)"
+        )
 
 
 def test_a_writers_value_error_mid_run_stops_retracts_and_is_recorded(quick, tmp_path, monkeypatch):
@@ -287,6 +304,7 @@ def test_a_writers_value_error_mid_run_stops_retracts_and_is_recorded(quick, tmp
 
 
 # -- finding 1: SIGTERM and SIGHUP mid-move, from another process ------------------------
+
 
 class ZaberLog:
     """Every command the simulated Zaber chain executes: (monotonic s, axis, command)."""
@@ -340,18 +358,22 @@ def wait_for_line(lines, prefix_in: str, deadline_s: float = 30.0) -> str:
 
 @pytest.mark.slow
 @pytest.mark.parametrize("signame", ["SIGTERM", "SIGHUP"])
-@pytest.mark.parametrize("command, moving_line", [
-    (["jog", "--axis", "z", "--to", "-3"], "z: moving to -3.0000 mm"),
-    (["home", "--axis", "z"], "z: homing"),
-    (["find-contact"], "z: moving to"),
-])
+@pytest.mark.parametrize(
+    "command, moving_line",
+    [
+        (["jog", "--axis", "z", "--to", "-3"], "z: moving to -3.0000 mm"),
+        (["home", "--axis", "z"], "z: homing"),
+        (["find-contact"], "z: moving to"),
+    ],
+)
 def test_a_signal_mid_move_stops_every_axis_and_leaves_the_gauge_usable(tmp_path, signame, command, moving_line):
     with SimulatedRig(transport="pty") as sim:
         cfg = tmp_path / "rig-sim.toml"
         cfg.write_text(sim.config_toml(with_camera=False))
         log = ZaberLog(sim)
-        proc = subprocess.Popen([RIG_BIN, *command, "--config", str(cfg)], stdout=subprocess.PIPE,
-                                stderr=subprocess.PIPE, text=True)
+        proc = subprocess.Popen(
+            [RIG_BIN, *command, "--config", str(cfg)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+        )
         try:
             wait_for_line(lines_of(proc.stderr), moving_line)
             assert sim.world.stages["z"].busy(sim.clock.now()), "the command said it moves, but z is idle"
@@ -368,8 +390,7 @@ def test_a_signal_mid_move_stops_every_axis_and_leaves_the_gauge_usable(tmp_path
         assert not any(s.busy(sim.clock.now()) for s in sim.world.stages.values())
         # Stopped at once: no control period began after the signal (at most the poll in flight).
         assert log.polls_between_signal_and_stop("z", t_signal) <= 1
-        status = subprocess.run([RIG_BIN, "status", "--config", str(cfg)], capture_output=True, text=True,
-                                timeout=60)
+        status = subprocess.run([RIG_BIN, "status", "--config", str(cfg)], capture_output=True, text=True, timeout=60)
         assert status.returncode == 0, status.stderr
         assert "Fz" in status.stdout
 

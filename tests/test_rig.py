@@ -144,7 +144,7 @@ def test_home_goes_z_first_and_references(sim):
     with Rig.open(sim.config(), sim.clock) as rig:
         for name, axis in rig.axes.items():
             original = axis.home
-            axis.home = (lambda n, f: (lambda: (order.append(n), f())))(name, original)
+            axis.home = (lambda n, f: lambda: (order.append(n), f()))(name, original)
         with rig.motion("home") as m:
             m.home_axes()
         assert order[0] == "z"

@@ -1,6 +1,6 @@
 """The run file cannot lie: one writer, atomic creation, checksums, disk full, broken files.
 
-Each test here failed on the code before issue 12 (the reason is in its docstring).
+Each test here failed on the code before these guarantees (the reason is in its docstring).
 """
 
 import errno
@@ -16,18 +16,18 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
+from test_acquisition import QUICK, ctrl_c, interrupt_at, run
+from test_dataset import make_run
 from typer.testing import CliRunner
 
 from acquisition import schema as S
 from acquisition.executor import Acquisition
 from acquisition.run_file import RunFileError, RunLocked, RunWriter, open_for_reading
-from cli.simulated import monitor_interval_s, simulated_rig_for
 from cli.dataset_app import app as dataset_app
+from cli.rig_app import app as rig_app
+from cli.simulated import monitor_interval_s, simulated_rig_for
 from dataset.runs import check_run, validate
 from protocols.plan import Plan
-from cli.rig_app import app as rig_app
-from test_acquisition import QUICK, ctrl_c, interrupt_at, run
-from test_dataset import make_run
 
 ROOT = Path(__file__).resolve().parents[1]
 runner = CliRunner()
@@ -45,14 +45,24 @@ def quick(tmp_path):
 def python(script: str, *args, **kwargs) -> subprocess.Popen:
     """A Python subprocess running ``script`` in the repository, with ``args`` as sys.argv[1:]."""
     env = dict(os.environ, PYTHONPATH=f"{ROOT}{os.pathsep}{ROOT / 'tests'}")
-    return subprocess.Popen([sys.executable, "-c", textwrap.dedent(script), *map(str, args)], cwd=ROOT, env=env,
-                            text=True, **kwargs)
+    return subprocess.Popen(
+        [sys.executable, "-c", textwrap.dedent(script), *map(str, args)], cwd=ROOT, env=env, text=True, **kwargs
+    )
 
 
 def row(i: int) -> dict:
-    return {S.WRENCH: np.full(6, 0.1 * i), S.POSE_COMMANDED: np.zeros(4), S.POSE_MEASURED: np.zeros(4),
-            S.T_FRAME: float(i), S.T_CAPTURE: float(i), S.WRENCH_SKEW: 0.001, S.CAPTURE_INDEX: i,
-            S.STEP_INDEX: 0, S.PHASE_INDEX: 1, S.LEVEL: 1}
+    return {
+        S.WRENCH: np.full(6, 0.1 * i),
+        S.POSE_COMMANDED: np.zeros(4),
+        S.POSE_MEASURED: np.zeros(4),
+        S.T_FRAME: float(i),
+        S.T_CAPTURE: float(i),
+        S.WRENCH_SKEW: 0.001,
+        S.CAPTURE_INDEX: i,
+        S.STEP_INDEX: 0,
+        S.PHASE_INDEX: 1,
+        S.LEVEL: 1,
+    }
 
 
 def frame(i: int, size: int = 32) -> np.ndarray:
@@ -180,8 +190,11 @@ def test_kill_9_during_creation_then_resume_and_a_new_run(quick, tmp_path):
     assert not out.exists()
     stray = list(tmp_path.glob("run.h5.creating-*"))
     assert len(stray) == 1 and stray[0].stat().st_size > 0  # a crash leaves only the temp file
-    with pytest.raises(RunFileError, match=r"no such run file to resume \(a crash interrupted its creation; removed "
-                                           r"run\.h5\.creating-\d+\); start a new run"):
+    with pytest.raises(
+        RunFileError,
+        match=r"no such run file to resume \(a crash interrupted its creation; removed "
+        r"run\.h5\.creating-\d+\); start a new run",
+    ):
         RunWriter.reopen(out)
     assert not list(tmp_path.glob("run.h5.creating-*"))
     proc = python(KILLED_IN_CREATE, out)  # again, and this time a new run at the same --out
@@ -199,8 +212,9 @@ def test_truncated_file_fails_fast_naming_it(tmp_path, kept):
     data = whole.read_bytes()
     cut.write_bytes(data[: int(len(data) * kept)])
     started = time.monotonic()
-    info = subprocess.run([str(Path(sys.executable).parent / "dataset"), "info", str(cut)], capture_output=True,
-                          text=True, timeout=60)
+    info = subprocess.run(
+        [str(Path(sys.executable).parent / "dataset"), "info", str(cut)], capture_output=True, text=True, timeout=60
+    )
     elapsed = time.monotonic() - started
     assert info.returncode == 1 and elapsed < 15, (elapsed, info.stderr)
     assert f"{cut}: truncated: {int(len(data) * kept):,} of its {len(data):,} bytes" in info.stderr, info.stderr
@@ -235,7 +249,7 @@ def test_validate_catches_a_corrupted_last_frame_and_row(tmp_path):
         assert last.chunk_offset[0] == 39
     data = bytearray(path.read_bytes())
     for at in (last.byte_offset + last.size // 2, wrench.byte_offset + 40):
-        data[at: at + 4] = bytes(b ^ 0x5A for b in data[at: at + 4])
+        data[at : at + 4] = bytes(b ^ 0x5A for b in data[at : at + 4])
     path.write_bytes(bytes(data))
     findings = validate(path)
     assert "frames[39]: checksum mismatch or missing bytes" in findings, findings
@@ -262,6 +276,7 @@ def test_validate_reads_every_frame_unless_asked_to_sample(tmp_path):
 def _drop(name):
     def change(f):
         del f[name]
+
     return change
 
 
@@ -269,12 +284,14 @@ def _replace(name, data):
     def change(f):
         del f[name]
         f.create_dataset(name, data=data)
+
     return change
 
 
 def _drop_attr(name):
     def change(f):
         del f.attrs[name]
+
     return change
 
 
@@ -312,8 +329,10 @@ def test_a_missing_attribute_is_a_finding(tmp_path):
     with h5py.File(path, "r+") as f:
         del f.attrs[S.ATTR_CAPTURE_HZ]
         f.attrs[S.ATTR_CONTACT_ORIGIN] = "here"
-    assert validate(path) == [f"attribute {S.ATTR_CAPTURE_HZ}: missing",
-                              f"attribute {S.ATTR_CONTACT_ORIGIN}: is 'here', expected 4 numbers"]
+    assert validate(path) == [
+        f"attribute {S.ATTR_CAPTURE_HZ}: missing",
+        f"attribute {S.ATTR_CONTACT_ORIGIN}: is 'here', expected 4 numbers",
+    ]
 
 
 def test_old_files_without_checksums_stay_readable(tmp_path):
@@ -322,10 +341,12 @@ def test_old_files_without_checksums_stay_readable(tmp_path):
     with h5py.File(new, "r") as src, h5py.File(old, "w") as dst:  # the layout before checksums
         for key, value in src.attrs.items():
             dst.attrs[key] = value
+
         def copy(name, obj):
             if isinstance(obj, h5py.Dataset):
                 dst.create_dataset(name, data=obj[()], maxshape=obj.maxshape, chunks=obj.chunks)
                 dst[name].attrs.update(obj.attrs)
+
         src.visititems(copy)
         assert not dst[S.FRAMES].fletcher32
     check = check_run(old)
@@ -354,8 +375,11 @@ def test_disk_full_commits_nothing_partial_and_resume_works(tmp_path, monkeypatc
     path = make_run(tmp_path / "run.h5", n=5, size=32, status="running")
     w = RunWriter.reopen(path)
     failed = _raise_enospc_on("/" + S.FRAMES, monkeypatch)
-    with pytest.raises(RunFileError, match=rf"{path}: disk full: frame 5 could not be written "
-                                           r"\(No space left on device\); frames 0-4 are kept"):
+    with pytest.raises(
+        RunFileError,
+        match=rf"{path}: disk full: frame 5 could not be written "
+        r"\(No space left on device\); frames 0-4 are kept",
+    ):
         w.append(frame(5), **row(5))
     assert failed == [5]
     with pytest.raises(RunFileError, match="disk full"):  # nothing more goes in after a failure
@@ -366,8 +390,10 @@ def test_disk_full_commits_nothing_partial_and_resume_works(tmp_path, monkeypatc
     with open_for_reading(path) as f:
         assert f[S.FRAMES].shape[0] == 5 and f[S.WRENCH].shape[0] == 5
         assert f[S.STATUS][()] == b"aborted" and f[S.STATUS_REASON][()].startswith(b"disk full: frame 5")
-    assert validate(path) == [f"{S.STATUS}: 'aborted', not complete (disk full: frame 5 could not be written "
-                              "(No space left on device); frames 0-4 are kept; stopped by an error)"]
+    assert validate(path) == [
+        f"{S.STATUS}: 'aborted', not complete (disk full: frame 5 could not be written "
+        "(No space left on device); frames 0-4 are kept; stopped by an error)"
+    ]
     w = RunWriter.reopen(path)
     for i in range(5, 8):
         w.append(frame(i), **row(i))
@@ -431,18 +457,33 @@ def test_a_file_size_limit_stops_the_run_without_a_crash(tmp_path):
 def test_a_really_full_disk(tmp_path, mode):
     """A 2 MB tmpfs in a user namespace, where the system allows one: real ENOSPC, stopped by
     the free-space check or (into-hdf5) failing inside HDF5's own write and rolled back."""
-    probe = subprocess.run(["unshare", "--user", "--map-root-user", "--mount", "true"], capture_output=True) \
-        if shutil.which("unshare") else None
+    probe = (
+        subprocess.run(["unshare", "--user", "--map-root-user", "--mount", "true"], capture_output=True)
+        if shutil.which("unshare")
+        else None
+    )
     if probe is None or probe.returncode != 0:
         pytest.skip("no user namespaces here to mount a small tmpfs")
     disk = tmp_path / "disk"
     disk.mkdir()
     script = tmp_path / "fill.py"
     script.write_text(textwrap.dedent(FILLS_THE_DISK))
-    proc = subprocess.run(["unshare", "--user", "--map-root-user", "--mount", "sh", "-c",
-                           f"mount -t tmpfs -o size=2m tmpfs {disk} && cd {ROOT} && "
-                           f"PYTHONPATH={ROOT}:{ROOT / 'tests'} {sys.executable} {script} {disk}/run.h5 0 {mode} && "
-                           f"cp {disk}/run.h5 {tmp_path}/copy.h5"], capture_output=True, text=True, timeout=120)
+    proc = subprocess.run(
+        [
+            "unshare",
+            "--user",
+            "--map-root-user",
+            "--mount",
+            "sh",
+            "-c",
+            f"mount -t tmpfs -o size=2m tmpfs {disk} && cd {ROOT} && "
+            f"PYTHONPATH={ROOT}:{ROOT / 'tests'} {sys.executable} {script} {disk}/run.h5 0 {mode} && "
+            f"cp {disk}/run.h5 {tmp_path}/copy.h5",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert "Traceback" not in proc.stderr, proc.stderr[-2000:]
     _check_filled(tmp_path / "copy.h5", proc.stdout, "disk full")
@@ -457,8 +498,12 @@ def test_disk_full_mid_run_stops_retracts_and_resume_completes(quick, tmp_path, 
         failed.extend(_raise_enospc_on("/" + S.FRAMES, monkeypatch))
 
     with simulated_rig_for(quick) as (rig, sim, header):
-        acq = Acquisition(rig, Plan.of(quick), monitor_interval_s=monitor_interval_s(quick),
-                          progress=interrupt_at(6, fill_disk_at_frame_6)(sim))
+        acq = Acquisition(
+            rig,
+            Plan.of(quick),
+            monitor_interval_s=monitor_interval_s(quick),
+            progress=interrupt_at(6, fill_disk_at_frame_6)(sim),
+        )
         with pytest.raises(RunFileError, match=rf"{out}: disk full: frame 6"):
             acq.run(out, header=header)
         z_after = rig.positions()["z"]

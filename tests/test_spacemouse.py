@@ -67,8 +67,8 @@ def test_poll_applies_every_waiting_report():
 
 
 def test_pendant_jog_moves_the_simulated_axis():
-    from rig.clock import ScaledClock
     from cli.interactive import jog_with_pendant
+    from rig.clock import ScaledClock
     from rig.rig import Rig
     from rig.sim.rig_sim import SimulatedRig
 

@@ -17,7 +17,9 @@ US = 0.047625e-3
 
 @pytest.fixture(params=["pty", "tcp"])
 def zaber(request, world, manual_clock, serve):
-    sim = ZaberChainSim(manual_clock, {1: ZaberDeviceSim(world.stages["x"], US), 3: ZaberDeviceSim(world.stages["z"], US)})
+    sim = ZaberChainSim(
+        manual_clock, {1: ZaberDeviceSim(world.stages["x"], US), 3: ZaberDeviceSim(world.stages["z"], US)}
+    )
     server = serve(sim, manual_clock, transport=request.param)
     chain = ZaberChain(SerialLink(server.url, baudrate=115200, timeout_s=0.3, device="chain"))
     yield chain, server
@@ -123,8 +125,7 @@ def test_zaber_answers_zaber_motion_identification_byte_exact(zaber_link):
 
 def test_zaber_command_without_address_goes_to_every_device_in_address_order(zaber_link):
     # Manual, "Command Format": device and axis are optional; no address means all devices.
-    assert _exchange(zaber_link, b"/get pos\n", 2) == [b"@01 0 OK IDLE -- 262467\r\n",
-                                                        b"@03 0 OK IDLE -- 314961\r\n"]
+    assert _exchange(zaber_link, b"/get pos\n", 2) == [b"@01 0 OK IDLE -- 262467\r\n", b"@03 0 OK IDLE -- 314961\r\n"]
     assert _exchange(zaber_link, b"/3 get pos\n") == [b"@03 0 OK IDLE -- 314961\r\n"]
 
 
@@ -175,8 +176,9 @@ def pr_axis(request, world, manual_clock, serve):
     sim = PrDriveSim(world.stages["theta"], pulses_per_rev=10000, travel_per_rev=4.0)
     server = serve(RtuServer({2: sim}), manual_clock, transport=request.param)
     bus = ModbusBus(server.url, baudrate=38400, timeout_s=0.3, retries=1, device="bus")
-    axis = PrDriveAxis(bus, name="theta", device_id=2, pulses_per_rev=10000, travel_per_rev=4.0,
-                       offset=-180.0, unit="deg")
+    axis = PrDriveAxis(
+        bus, name="theta", device_id=2, pulses_per_rev=10000, travel_per_rev=4.0, offset=-180.0, unit="deg"
+    )
     yield axis, sim, server
     bus.close()
 
@@ -202,8 +204,9 @@ def test_pr_drive_wrong_scale_and_exception_codes(pr_axis):
     with pytest.raises(DeviceRejected, match=r"exception 2 \(ILLEGAL DATA ADDRESS\)"):
         axis._read(0x7777, 1)
     with pytest.raises(DeviceRejected, match=r"exception 3 \(ILLEGAL DATA VALUE\)"):
-        PrDriveAxis(axis.bus, name="theta", device_id=2, pulses_per_rev=10000, travel_per_rev=4.0,
-                    offset=-180.0, unit="deg").move_to(400.0, 10.0)  # beyond the stage's travel
+        PrDriveAxis(
+            axis.bus, name="theta", device_id=2, pulses_per_rev=10000, travel_per_rev=4.0, offset=-180.0, unit="deg"
+        ).move_to(400.0, 10.0)  # beyond the stage's travel
 
 
 def test_pr_drive_stall_alarm(pr_axis, world, manual_clock):
@@ -215,8 +218,10 @@ def test_pr_drive_stall_alarm(pr_axis, world, manual_clock):
 
 
 def test_two_drives_share_one_bus(world, manual_clock, serve):
-    sims = {1: PrDriveSim(world.stages["x"], pulses_per_rev=2000, travel_per_rev=2.0),
-            2: PrDriveSim(world.stages["y"], pulses_per_rev=2000, travel_per_rev=2.0)}
+    sims = {
+        1: PrDriveSim(world.stages["x"], pulses_per_rev=2000, travel_per_rev=2.0),
+        2: PrDriveSim(world.stages["y"], pulses_per_rev=2000, travel_per_rev=2.0),
+    }
     server = serve(RtuServer(sims), manual_clock)
     bus = ModbusBus(server.url, baudrate=38400, timeout_s=0.3, retries=0, device="bus")
     x = PrDriveAxis(bus, name="x", device_id=1, pulses_per_rev=2000, travel_per_rev=2.0, offset=-12.5)
@@ -226,3 +231,52 @@ def test_two_drives_share_one_bus(world, manual_clock, serve):
     manual_clock.advance(10)
     assert (x.position(), y.position()) == (pytest.approx(1.0), pytest.approx(-2.0))
     bus.close()
+
+
+def test_pr_drive_motion_state_bits_follow_the_manual(pr_axis, world, manual_clock):
+    # 0x1003 "Motion state" (Status Monitoring Parameters): bit1 enabled, bit2 running,
+    # bit4 command completed, bit5 path completed, bit6 homing completed, bit0 fault.
+    axis, sim, _ = pr_axis
+    (state,) = axis._read(0x1003, 1)
+    assert state == 0x0002 | 0x0040  # enabled; the world's stages start homed
+    axis.move_to(3.0, 10.0)
+    (state,) = axis._read(0x1003, 1)
+    assert state & 0x0004 and not state & 0x0030
+    manual_clock.advance(5)
+    (state,) = axis._read(0x1003, 1)
+    assert state == 0x0002 | 0x0010 | 0x0020 | 0x0040
+    world.stages["theta"].stall(manual_clock.now())
+    (state,) = axis._read(0x1003, 1)
+    assert state & 0x0001
+    assert axis._read(0x1012, 4)[0:2] == axis._read(0x1014, 2)  # profile = feedback: no following error
+
+
+def test_pr_drive_single_frame_with_delay_and_trigger_moves_the_stage(pr_axis, world, manual_clock):
+    # PR0 written register by register stores; the frame's last register (0x6207,
+    # mapped to 0x6002) triggers. A relative path (mode 0x0041) adds to the position.
+    axis, sim, _ = pr_axis
+    axis.bus.write_registers(2, 0x6200, [0x0041, 0, 2500, 60, 100, 100, 0, 0x0000], device="theta")
+    manual_clock.advance(2)
+    assert axis.position() == pytest.approx(0.0)  # 0x6207 = 0: stored, not run
+    axis.bus.write_registers(2, 0x6207, [0x0010], device="theta")
+    manual_clock.advance(5)
+    assert axis.position() == pytest.approx(1.0)  # 2500 pulses at 4 deg / 10000 pulses
+    assert world.pose().theta_deg == pytest.approx(1.0)
+
+
+def test_modbus_broadcast_write_is_carried_out_by_every_drive_and_unanswered(world, manual_clock, serve):
+    # Modbus over Serial Line v1.02 §2.1: address 0 is the broadcast; writes only, no reply.
+    from rig.errors import DeviceTimeout
+    from rig.transport.crc import append_crc
+
+    sims = {
+        1: PrDriveSim(world.stages["x"], pulses_per_rev=2000, travel_per_rev=2.0),
+        2: PrDriveSim(world.stages["y"], pulses_per_rev=2000, travel_per_rev=2.0),
+    }
+    server = serve(RtuServer(sims), manual_clock)
+    link = SerialLink(server.url, baudrate=38400, timeout_s=0.2, device="bus")
+    link.write(append_crc(bytes.fromhex("00 06 62 03 00 78")), "broadcast 120 rpm")
+    with pytest.raises(DeviceTimeout, match="no reply"):
+        link.read_exact(8, "broadcast")
+    assert [s.regs[0x6203] for s in sims.values()] == [120, 120]
+    link.close()

@@ -6,14 +6,14 @@ import math
 import numpy as np
 import pytest
 
+from objects.indenters import INDENTERS, get_indenter
 from objects.pose import Pose
 from sensor_sim.backing import WINDOW_E_STAR_MPa
 from sensor_sim.contact import SensorGeometry, TactileContact
 from sensor_sim.elastomer import Elastomer, PhysicsInputError
-from objects.indenters import INDENTERS, get_indenter
 from sensor_sim.kernels import Kernels, cell_integrals, layer_factor
-from sensor_sim.normal_contact import solve_normal
 from sensor_sim.light import OpticsSpec
+from sensor_sim.normal_contact import solve_normal
 from sensor_sim.scene import Scene
 from sensor_sim.tangential_contact import solve_tangential
 from sensor_sim.world_contact import ElastomerContact
@@ -91,8 +91,12 @@ def test_hertz_force_radius_and_peak_pressure(n):
 
 
 def test_sphere_force_exponent_and_radius_scaling():
-    tc = TactileContact(get_indenter("sphere10mm"), Elastomer(E_MPa=0.3, nu=0.49, thickness_mm=math.inf),
-                        SensorGeometry(width_mm=10, height_mm=10, cells=128), tol=1e-5)
+    tc = TactileContact(
+        get_indenter("sphere10mm"),
+        Elastomer(E_MPa=0.3, nu=0.49, thickness_mm=math.inf),
+        SensorGeometry(width_mm=10, height_mm=10, cells=128),
+        tol=1e-5,
+    )
     depths = np.array([0.1, 0.2, 0.3, 0.4])
     sols = [tc.solve(Pose(0, 0, -d, 0)).normal for d in depths]
     F = np.array([s.force_N for s in sols])
@@ -147,7 +151,9 @@ GEL = Elastomer()
 def test_stiffness_range_is_finite_and_linear_in_modulus(E_MPa):
     tc = TactileContact(get_indenter("sphere10mm"), Elastomer(E_MPa=E_MPa, nu=0.45, thickness_mm=3.0))
     r = tc.solve(Pose(0, 0, -0.4, 0), shift_mm=(0.1, 0.0), twist_rad=0.01)
-    ref = TactileContact(get_indenter("sphere10mm"), Elastomer(E_MPa=1.0, nu=0.45, thickness_mm=3.0)).solve(Pose(0, 0, -0.4, 0))
+    ref = TactileContact(get_indenter("sphere10mm"), Elastomer(E_MPa=1.0, nu=0.45, thickness_mm=3.0)).solve(
+        Pose(0, 0, -0.4, 0)
+    )
     assert np.all(np.isfinite(r.wrench)) and r.normal.converged and r.tangential.converged
     assert r.wrench[2] == pytest.approx(ref.wrench[2] * E_MPa, rel=1e-3)
 
@@ -195,14 +201,17 @@ def test_twist_produces_mz_with_the_sign_of_the_twist():
     assert plus.wrench[5] == pytest.approx(-minus.wrench[5], rel=1e-2)
 
 
-@pytest.mark.parametrize("make, words", [
-    (lambda: Elastomer(E_MPa=-1.0), "E_MPa"),
-    (lambda: Elastomer(E_MPa=float("nan")), "E_MPa"),
-    (lambda: Elastomer(nu=0.6), "Poisson"),
-    (lambda: Elastomer(thickness_mm=0.0), "thickness"),
-    (lambda: Elastomer(friction=-0.1), "friction"),
-    (lambda: TactileContact(get_indenter("sphere10mm"), GEL).solve(Pose(float("nan"), 0, -1.0, 0)), "finite"),
-])
+@pytest.mark.parametrize(
+    "make, words",
+    [
+        (lambda: Elastomer(E_MPa=-1.0), "E_MPa"),
+        (lambda: Elastomer(E_MPa=float("nan")), "E_MPa"),
+        (lambda: Elastomer(nu=0.6), "Poisson"),
+        (lambda: Elastomer(thickness_mm=0.0), "thickness"),
+        (lambda: Elastomer(friction=-0.1), "friction"),
+        (lambda: TactileContact(get_indenter("sphere10mm"), GEL).solve(Pose(float("nan"), 0, -1.0, 0)), "finite"),
+    ],
+)
 def test_meaningless_inputs_are_clear_errors(make, words):
     with pytest.raises(PhysicsInputError, match=words):
         make()

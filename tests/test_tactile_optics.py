@@ -9,7 +9,15 @@ import numpy as np
 import pytest
 
 from objects.pose import Pose
-from sensor_sim.calibration import CalibrationError, Contact, Press, find_contact, fit_optics, refine_contact, render_press
+from sensor_sim.calibration import (
+    CalibrationError,
+    Contact,
+    Press,
+    find_contact,
+    fit_optics,
+    refine_contact,
+    render_press,
+)
 from sensor_sim.light import SENSOR_KINDS, LightModel, OpticsSpec, soft_bound
 from sensor_sim.optics import Renderer
 from sensor_sim.profile import ProfileError, default_profile, load_profile, save_profile
@@ -38,8 +46,11 @@ def test_frame_changes_only_where_the_gel_is_pressed(kind):
 
 def test_rgb_shows_colour_white_light_does_not():
     rgb = Scene("sphere10mm", "rgb", optics=OpticsSpec(kind="rgb", noise_std=0.0)).frame(Pose(0, 0, -1.0, 0)).image
-    white = Scene("sphere10mm", "white_markers", optics=OpticsSpec(kind="white_markers", noise_std=0.0)).frame(
-        Pose(0, 0, -1.0, 0)).image.astype(int)
+    white = (
+        Scene("sphere10mm", "white_markers", optics=OpticsSpec(kind="white_markers", noise_std=0.0))
+        .frame(Pose(0, 0, -1.0, 0))
+        .image.astype(int)
+    )
     assert np.ptp(rgb.astype(int), axis=2).max() > 60  # strongly coloured lobes
     assert np.abs(white[..., 0] - white[..., 2]).max() <= 1  # grey
 
@@ -128,7 +139,7 @@ def _lambertian_light(bins: int = 21) -> LightModel:
     nx, ny = np.meshgrid(n, n)
     nz = np.sqrt(np.clip(1 - nx**2 - ny**2, 0, 1))
     lights = np.array([[0.7, 0.0, 0.7], [-0.35, 0.6, 0.7], [-0.35, -0.6, 0.7]])  # one per channel, B G R
-    shade = np.stack([np.maximum(0, l[0] * nx + l[1] * ny + l[2] * nz) - l[2] for l in lights])
+    shade = np.stack([np.maximum(0, d[0] * nx + d[1] * ny + d[2] * nz) - d[2] for d in lights])
     return LightModel((90.0 * shade).astype(np.float32), 0.1, "multiplicative", (100.0, 100.0, 100.0))
 
 
@@ -136,13 +147,25 @@ def test_calibration_recovers_a_known_model():
     truth = _lambertian_light()
     h, w, mm_per_px, ball_mm = 240, 320, 0.03, 2.0
     ys, xs = np.mgrid[0:h, 0:w]
-    background = np.stack([80 + 40 * xs / w, 110 - 20 * ys / h, 90 + 30 * (xs + ys) / (w + h)], axis=-1).astype(np.float32)
+    background = np.stack([80 + 40 * xs / w, 110 - 20 * ys / h, 90 + 30 * (xs + ys) / (w + h)], axis=-1).astype(
+        np.float32
+    )
     rng = np.random.default_rng(0)
-    contacts = [Contact(90.3, 80.6, 22.0), Contact(220.8, 150.2, 30.0), Contact(160.0, 120.0, 26.0),
-                Contact(100.4, 170.7, 34.0)]
-    presses = [Press(np.clip(render_press(truth, background, c, ball_mm, mm_per_px)
-                             + rng.normal(0, 1.0, background.shape), 0, 255).astype(np.uint8), ball_mm)
-               for c in contacts]
+    contacts = [
+        Contact(90.3, 80.6, 22.0),
+        Contact(220.8, 150.2, 30.0),
+        Contact(160.0, 120.0, 26.0),
+        Contact(100.4, 170.7, 34.0),
+    ]
+    presses = [
+        Press(
+            np.clip(
+                render_press(truth, background, c, ball_mm, mm_per_px) + rng.normal(0, 1.0, background.shape), 0, 255
+            ).astype(np.uint8),
+            ball_mm,
+        )
+        for c in contacts
+    ]
     fit = fit_optics(background.astype(np.uint8), presses, mm_per_px)
     for found, true in zip(fit.contacts, contacts):
         assert abs(found.centre_x_px - true.centre_x_px) < 1.0 and abs(found.centre_y_px - true.centre_y_px) < 1.0
@@ -166,8 +189,9 @@ def _real_presses():
     background = cv2.imread(str(SHARED / "background.png"), cv2.IMREAD_COLOR)
     rows = list(csv.DictReader(open(SHARED / "presses.csv")))
     images = [cv2.imread(str(SHARED / r["file"]), cv2.IMREAD_COLOR) for r in rows]
-    published = [(float(r["touch_center_x_px"]), float(r["touch_center_y_px"]), float(r["touch_radius_px"]))
-                 for r in rows]
+    published = [
+        (float(r["touch_center_x_px"]), float(r["touch_center_y_px"]), float(r["touch_radius_px"])) for r in rows
+    ]
     return background, images, published
 
 
@@ -186,7 +210,8 @@ def test_contacts_found_on_the_real_presses():
         diff = image.astype(np.float32) - background
         moved = np.clip(background + np.roll(diff, (9, -13), axis=(0, 1)), 0, 255).astype(np.uint8)
         again = refine_contact(light, background, Press(moved, 2.0), find_contact(background, moved), REAL_MM_PER_PX)
-        assert abs(again.centre_x_px - (found.centre_x_px - 13)) < 2 and abs(again.centre_y_px - (found.centre_y_px + 9)) < 2
+        assert abs(again.centre_x_px - (found.centre_x_px - 13)) < 2
+        assert abs(again.centre_y_px - (found.centre_y_px + 9)) < 2
         assert abs(again.radius_px - found.radius_px) < 2
 
 
@@ -198,7 +223,7 @@ def test_fit_on_four_real_presses_beats_the_background_on_the_fifth():
     press = Press(images[0], 2.0)
     contact = refine_contact(fit.light, background, press, find_contact(background, images[0]), REAL_MM_PER_PX)
     rendered = np.clip(render_press(fit.light, background, contact, 2.0, REAL_MM_PER_PX), 0, 255)
-    ys, xs = np.mgrid[0:background.shape[0], 0:background.shape[1]]
+    ys, xs = np.mgrid[0 : background.shape[0], 0 : background.shape[1]]
     cx, cy, touch_px = published[0]
     near = np.hypot(xs - cx, ys - cy) < 1.5 * touch_px
     real = images[0].astype(np.float32)
@@ -212,8 +237,18 @@ def test_profile_round_trips(tmp_path):
     path = save_profile(profile, tmp_path / "mine.toml")
     assert (tmp_path / "mine.png").exists()
     again = load_profile(path)
-    for key in ("name", "width_px", "height_px", "mm_per_px", "gel_thickness_mm", "gel_E_MPa", "noise_std",
-                "marker_pitch_mm", "marker_radius_mm", "marker_darkness"):
+    for key in (
+        "name",
+        "width_px",
+        "height_px",
+        "mm_per_px",
+        "gel_thickness_mm",
+        "gel_E_MPa",
+        "noise_std",
+        "marker_pitch_mm",
+        "marker_radius_mm",
+        "marker_darkness",
+    ):
         assert getattr(again, key) == getattr(profile, key), key
     assert np.array_equal(again.background, profile.background)
     assert np.abs(again.light.table_bgr - profile.light.table_bgr).max() <= 5e-4  # written to 3 decimals
@@ -222,15 +257,18 @@ def test_profile_round_trips(tmp_path):
     assert frame.shape == (again.height_px, again.width_px, 3)
 
 
-@pytest.mark.parametrize("edit, message", [
-    (("blur_mm = ", "blur_mm = nan #"), r"\[optics\] blur_mm must be a finite number"),
-    (("E_MPa = ", "E_MPa = inf #"), r"\[gel\] E_MPa must be a finite number"),
-    (("width_px = 256", "width_px = -3"), r"\[sensor\] width_px must be a finite number"),
-    (("thickness_mm = ", "# thickness_mm = "), r"missing key \[gel\] thickness_mm"),
-    (("table_bins = 21", "table_bins = 19"), r"\[optics\] table_b must be 19×19"),
-    (('shading = "multiplicative"', 'shading = "glossy"'), r"\[optics\] shading must be one of"),
-    (('background = "mine.png"', 'background = "absent.png"'), r"\[sensor\] background 'absent.png'"),
-])
+@pytest.mark.parametrize(
+    "edit, message",
+    [
+        (("blur_mm = ", "blur_mm = nan #"), r"\[optics\] blur_mm must be a finite number"),
+        (("E_MPa = ", "E_MPa = inf #"), r"\[gel\] E_MPa must be a finite number"),
+        (("width_px = 256", "width_px = -3"), r"\[sensor\] width_px must be a finite number"),
+        (("thickness_mm = ", "# thickness_mm = "), r"missing key \[gel\] thickness_mm"),
+        (("table_bins = 21", "table_bins = 19"), r"\[optics\] table_b must be 19×19"),
+        (('shading = "multiplicative"', 'shading = "glossy"'), r"\[optics\] shading must be one of"),
+        (('background = "mine.png"', 'background = "absent.png"'), r"\[sensor\] background 'absent.png'"),
+    ],
+)
 def test_profile_refuses_bad_values_with_one_line(tmp_path, edit, message):
     path = save_profile(default_profile(), tmp_path / "mine.toml")
     text = path.read_text()

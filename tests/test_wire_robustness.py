@@ -1,4 +1,4 @@
-"""Wire exchanges under hostile conditions (issue 12, findings 5, 7 and 9).
+"""Wire exchanges under hostile conditions.
 
 Late Modbus replies are never taken for another request's answer; a signal arriving
 during a write does not abort it; a simulated exchange does not time out because the
@@ -42,6 +42,7 @@ def read_or_error(bus, address, count):
 
 
 # -- finding 5: a late reply is never the answer to the next request ----------------
+
 
 def test_late_modbus_reply_is_never_taken_for_the_next_answer(theta_bus, manual_clock):
     bus, server, drive = theta_bus
@@ -115,9 +116,11 @@ def test_mismatched_reply_is_an_error_never_a_value(serve, case):
 @pytest.mark.parametrize("case", sorted(MISMATCHES))
 def test_mismatched_reply_is_retried_then_the_right_one_used(serve, case):
     request, wrong = MISMATCHES[case]
-    right = {READ_POS: append_crc(bytes.fromhex("01 03 04 00 00 30 D4")),
-             WRITE_CTRL: WRITE_CTRL,
-             WRITE_BLOCK: append_crc(bytes.fromhex("01 10 62 00 00 02"))}[request]
+    right = {
+        READ_POS: append_crc(bytes.fromhex("01 03 04 00 00 30 D4")),
+        WRITE_CTRL: WRITE_CTRL,
+        WRITE_BLOCK: append_crc(bytes.fromhex("01 10 62 00 00 02")),
+    }[request]
     script = ScriptedDevice([(request, wrong), (request, right)])
     server = serve(script)
     bus = ModbusBus(server.url, baudrate=38400, timeout_s=0.2, retries=1, device="bus")
@@ -138,6 +141,7 @@ def test_exception_reply_is_a_rejection_naming_the_device(serve):
 
 
 # -- finding 9: EINTR during write and flush ------------------------------------------
+
 
 def test_write_and_flush_complete_while_signals_arrive():
     import pty
@@ -208,6 +212,7 @@ def test_an_exception_raised_by_a_signal_handler_still_propagates():
 
 # -- finding 7: simulated timeouts immune to real-time load ---------------------------
 
+
 class StallingModel:
     """A device model whose next ``feed`` waits ``stall_s`` of real time before answering,
     as a simulator thread starved of CPU would; no simulated time passes meanwhile."""
@@ -235,8 +240,9 @@ def test_simulated_exchange_survives_a_real_time_stall(world, manual_clock, serv
     model = StallingModel(RtuServer({1: drive}), stall_s=0.8)  # longer than the old 0.3 s timeout
     server = serve(model, manual_clock)
     bus = ModbusBus(server.url, baudrate=38400, timeout_s=0.3, retries=0, device="theta bus")
-    axis = PrDriveAxis(bus, name="theta", device_id=1, pulses_per_rev=PULSES_PER_REV, travel_per_rev=4.0,
-                       offset=-180.0)  # the world's theta origin is at 180 deg
+    axis = PrDriveAxis(
+        bus, name="theta", device_id=1, pulses_per_rev=PULSES_PER_REV, travel_per_rev=4.0, offset=-180.0
+    )  # the world's theta origin is at 180 deg
     t_sim = manual_clock.now()
     assert axis.position() == pytest.approx(0.0)
     assert manual_clock.now() == t_sim  # the exchange took no simulated time

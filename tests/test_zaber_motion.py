@@ -41,8 +41,9 @@ def zml(tmp_path, serve):
     # (4x faster, to keep homing short; motion is all zaber-motion waits on).
     clock = ScaledClock(4.0)
     world = SimWorld(clock, contact=SpringContact())
-    sim = ZaberChainSim(clock, {1: ZaberDeviceSim(world.stages["x"], US_MM),
-                                2: ZaberDeviceSim(world.stages["y"], US_MM)})
+    sim = ZaberChainSim(
+        clock, {1: ZaberDeviceSim(world.stages["x"], US_MM), 2: ZaberDeviceSim(world.stages["y"], US_MM)}
+    )
     server = serve(sim, clock, transport="tcp")
     store = tmp_path / "store"
     shutil.copytree(STORE, store)  # the library may write to its store

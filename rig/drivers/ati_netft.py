@@ -42,23 +42,49 @@ FORCE_UNIT_CODES = {1: "lbf", 2: "N", 3: "klbf", 4: "kN", 5: "kgf", 6: "gf"}
 TORQUE_UNIT_CODES = {1: "lbf-in", 2: "lbf-ft", 3: "N-m", 4: "N-mm", 5: "kgf-cm", 6: "kN-m"}
 LBF_N = 4.4482216152605
 N_PER_FORCE_UNIT = {"lbf": LBF_N, "N": 1.0, "klbf": 1000 * LBF_N, "kN": 1000.0, "kgf": 9.80665, "gf": 9.80665e-3}
-NMM_PER_TORQUE_UNIT = {"lbf-in": LBF_N * 25.4, "lbf-ft": LBF_N * 304.8, "N-m": 1000.0, "N-mm": 1.0,
-                       "kgf-cm": 98.0665, "kN-m": 1e6}
+NMM_PER_TORQUE_UNIT = {
+    "lbf-in": LBF_N * 25.4,
+    "lbf-ft": LBF_N * 304.8,
+    "N-m": 1000.0,
+    "N-mm": 1.0,
+    "kgf-cm": 98.0665,
+    "kN-m": 1e6,
+}
 # The web page writes "Nm"/"Nmm" as often as "N-m"/"N-mm": compare without separators.
 _TORQUE_SPELLINGS = {u.replace("-", "").lower(): u for u in NMM_PER_TORQUE_UNIT}
 
 # System status word (manual, "System Status Code"); any set bit makes a record unusable.
 STATUS_BITS = {
-    31: "error summary", 30: "CPU or RAM error", 29: "digital board error", 28: "analog board error",
-    27: "serial link error", 26: "program memory error", 25: "halted: configuration error",
-    24: "settings validation error", 23: "configuration incompatible with calibration",
-    22: "network communication failure", 21: "CAN error", 20: "RDT communication error",
-    19: "EtherNet/IP failure", 18: "DeviceNet failure", 17: "transducer saturation or A/D error",
-    16: "monitor condition latched", 14: "watchdog timeout", 13: "stack check error",
-    12: "EEPROM failure", 11: "flash failure", 10: "analog board watchdog", 9: "excitation current too high",
-    8: "excitation current too low", 7: "analog ground out of range", 6: "analog supply too high",
-    5: "analog supply too low", 4: "serial link data unavailable", 3: "reference voltage error",
-    2: "temperature error", 1: "HTTP failure",
+    31: "error summary",
+    30: "CPU or RAM error",
+    29: "digital board error",
+    28: "analog board error",
+    27: "serial link error",
+    26: "program memory error",
+    25: "halted: configuration error",
+    24: "settings validation error",
+    23: "configuration incompatible with calibration",
+    22: "network communication failure",
+    21: "CAN error",
+    20: "RDT communication error",
+    19: "EtherNet/IP failure",
+    18: "DeviceNet failure",
+    17: "transducer saturation or A/D error",
+    16: "monitor condition latched",
+    14: "watchdog timeout",
+    13: "stack check error",
+    12: "EEPROM failure",
+    11: "flash failure",
+    10: "analog board watchdog",
+    9: "excitation current too high",
+    8: "excitation current too low",
+    7: "analog ground out of range",
+    6: "analog supply too high",
+    5: "analog supply too low",
+    4: "serial link data unavailable",
+    3: "reference voltage error",
+    2: "temperature error",
+    1: "HTTP failure",
 }
 
 
@@ -105,7 +131,8 @@ class NetFtConfig:
         if self.rated is None:
             return None
         return np.asarray(self.rated) * np.repeat(
-            [N_PER_FORCE_UNIT[self.force_unit], NMM_PER_TORQUE_UNIT[self.torque_unit]], 3)
+            [N_PER_FORCE_UNIT[self.force_unit], NMM_PER_TORQUE_UNIT[self.torque_unit]], 3
+        )
 
 
 def parse_config(xml: bytes, label: str, url: str) -> NetFtConfig:
@@ -136,7 +163,7 @@ def parse_config(xml: bytes, label: str, url: str) -> NetFtConfig:
             raise bad(text_key, "unknown unit")
         if name is not None and code is not None and name != code:
             raise bad(text_key, f"disagrees with <{code_key}> = {fields[code_key]} ({code})")
-        return name or code
+        return name if name is not None else str(code)  # both missing was refused above
 
     def optional_int(key: str) -> int | None:
         return int(fields[key]) if fields.get(key, "").isdigit() else None
@@ -150,11 +177,20 @@ def parse_config(xml: bytes, label: str, url: str) -> NetFtConfig:
         if len(rated) != 6 or not all(math.isfinite(v) and v > 0 for v in rated):
             rated = None  # a 0 rating means "not set" (ATI's demo substitutes a default)
     return NetFtConfig(
-        counts_per_force=positive("cfgcpf"), counts_per_torque=positive("cfgcpt"),
+        counts_per_force=positive("cfgcpf"),
+        counts_per_torque=positive("cfgcpt"),
         force_unit=unit("scfgfu", "cfgfu", FORCE_UNIT_CODES, N_PER_FORCE_UNIT, lambda s: s),
-        torque_unit=unit("scfgtu", "cfgtu", TORQUE_UNIT_CODES, NMM_PER_TORQUE_UNIT,
-                         lambda s: _TORQUE_SPELLINGS.get(s.replace("-", "").lower(), s)),
-        rdt_rate_hz=optional_int("comrdtrate"), rdt_buffer_size=optional_int("comrdtbsiz"), rated=rated)
+        torque_unit=unit(
+            "scfgtu",
+            "cfgtu",
+            TORQUE_UNIT_CODES,
+            NMM_PER_TORQUE_UNIT,
+            lambda s: _TORQUE_SPELLINGS.get(s.replace("-", "").lower(), s),
+        ),
+        rdt_rate_hz=optional_int("comrdtrate"),
+        rdt_buffer_size=optional_int("comrdtbsiz"),
+        rated=rated,
+    )
 
 
 class RdtSync:
@@ -181,7 +217,7 @@ class RdtSync:
             return []
         out = []
         for i in range(0, len(datagram), RECORD_LENGTH):
-            record = datagram[i:i + RECORD_LENGTH]
+            record = datagram[i : i + RECORD_LENGTH]
             seq = RECORD.unpack_from(record)[0]
             if self.last_seq is not None:
                 step = (seq - self.last_seq + 2**31) % 2**32 - 2**31  # sequence numbers wrap
@@ -204,9 +240,21 @@ class RdtSync:
 class AtiNetFT(GaugeBase):
     """A Net F/T at ``host``; reads its configuration on construction."""
 
-    def __init__(self, host: str, clock: Clock, *, name: str = "gauge", rdt_port: int = RDT_PORT,
-                 http_port: int = 80, timeout_s: float = 0.5, retries: int = 2, mode: str = "realtime",
-                 overrange: float = 1.5, buffer_size: int = 4096, fresh_after_s: float = 0.05):
+    def __init__(
+        self,
+        host: str,
+        clock: Clock,
+        *,
+        name: str = "gauge",
+        rdt_port: int = RDT_PORT,
+        http_port: int = 80,
+        timeout_s: float = 0.5,
+        retries: int = 2,
+        mode: str = "realtime",
+        overrange: float = 1.5,
+        buffer_size: int = 4096,
+        fresh_after_s: float = 0.05,
+    ):
         if mode not in ("realtime", "buffered"):
             raise ValueError(f"mode must be 'realtime' or 'buffered', got {mode!r}")
         super().__init__(clock, buffer_size, fresh_after_s=fresh_after_s)
@@ -235,8 +283,9 @@ class AtiNetFT(GaugeBase):
         _, _, status, counts = unpack_record(record)
         if status:
             self.status = status
-            self._fault = DeviceFault(self.label, "RDT record", f"status 0x{status:08X}",
-                                      "status " + ", ".join(status_names(status)))
+            self._fault = DeviceFault(
+                self.label, "RDT record", f"status 0x{status:08X}", "status " + ", ".join(status_names(status))
+            )
             return "status"
         rated = self.config.rated_native
         if rated is not None:

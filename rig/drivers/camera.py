@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import logging
 import threading
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Protocol
 
@@ -68,13 +69,24 @@ class FolderSource:
             raise ValueError(f"recorded frames: cannot decode {self.paths[self._i - 1]}")
         return True, image
 
+    def settings(self) -> dict:
+        return {"fps": 1.0 / self.period_s if self.period_s else None}  # recorded: nothing to lock
+
     def release(self) -> None:
         self._i = len(self.paths)
         self.loop = False
 
 
-def open_v4l2(device: str | int, *, width: int, height: int, fps: float, exposure: float | None,
-              white_balance_K: float | None, fourcc: str = "MJPG"):
+def open_v4l2(
+    device: str | int,
+    *,
+    width: int,
+    height: int,
+    fps: float,
+    exposure: float | None,
+    white_balance_K: float | None,
+    fourcc: str = "MJPG",
+):
     """Open a UVC camera through OpenCV's V4L2 backend with exposure and white balance locked.
 
     Thin on purpose: everything else (grabbing, stamping, discarding) is in ``Camera``.
@@ -84,8 +96,13 @@ def open_v4l2(device: str | int, *, width: int, height: int, fps: float, exposur
 
     cap = cv2.VideoCapture(device, cv2.CAP_V4L2)
     if not cap.isOpened():
-        raise DeviceDisconnected(f"camera {device}", "open", None, "cannot open V4L2 device (is it plugged in, and are you in group 'video'?)")
-    cap.set(cv2.CAP_PROP_FOURCC, cv2.VideoWriter_fourcc(*fourcc))
+        raise DeviceDisconnected(
+            f"camera {device}",
+            "open",
+            None,
+            "cannot open V4L2 device (is it plugged in, and are you in group 'video'?)",
+        )
+    cap.set(cv2.CAP_PROP_FOURCC, cv2.VideoWriter.fourcc(*fourcc))
     cap.set(cv2.CAP_PROP_FRAME_WIDTH, width)
     cap.set(cv2.CAP_PROP_FRAME_HEIGHT, height)
     cap.set(cv2.CAP_PROP_FPS, fps)
@@ -97,6 +114,43 @@ def open_v4l2(device: str | int, *, width: int, height: int, fps: float, exposur
         cap.set(cv2.CAP_PROP_AUTO_WB, 0)
         cap.set(cv2.CAP_PROP_WB_TEMPERATURE, white_balance_K)
     return cap
+
+
+@dataclass(frozen=True)
+class CameraReport:
+    """What `rig status` says about a camera before a run."""
+
+    width_px: int
+    height_px: int
+    fps: float | None  # what the source says it delivers (None: it does not say)
+    exposure_locked: bool | None  # None: not applicable or not reported (recorded frames)
+    white_balance_locked: bool | None
+    newest_age_s: float  # clock seconds since the newest frame arrived
+    frames_arrived: int
+
+
+def source_settings(source) -> dict:
+    """fps and whether exposure and white balance are locked, as the source reports them.
+
+    An OpenCV V4L2 capture is asked (CAP_PROP_AUTO_EXPOSURE: 1 manual, 3 aperture
+    priority, or 0.25 / 0.75 on older backends; CAP_PROP_AUTO_WB: 0 off); other sources
+    say it themselves (``settings()``) or not at all.
+    """
+    if hasattr(source, "settings"):
+        return source.settings()
+    if hasattr(source, "get") and getattr(source, "getBackendName", lambda: "")() == "V4L2":
+        import cv2
+
+        return {
+            "fps": source.get(cv2.CAP_PROP_FPS) or None,
+            "exposure_locked": source.get(cv2.CAP_PROP_AUTO_EXPOSURE) in (1.0, 0.25),
+            "white_balance_locked": source.get(cv2.CAP_PROP_AUTO_WB) == 0.0,
+        }
+    if hasattr(source, "get"):  # a video file
+        import cv2
+
+        return {"fps": source.get(cv2.CAP_PROP_FPS) or None}
+    return {}
 
 
 class Camera:
@@ -156,7 +210,9 @@ class Camera:
     def read(self, timeout_s: float = 1.0) -> Frame:
         """The newest frame not returned before. Raises DeviceTimeout or DeviceDisconnected."""
         with self._cond:
-            fresh = lambda: (self._newest is not None and self._newest.index > self._returned) or self.error or self.ended
+            fresh = lambda: (
+                (self._newest is not None and self._newest.index > self._returned) or self.error or self.ended
+            )
             if not self._cond.wait_for(fresh, timeout=timeout_s):
                 raise DeviceTimeout(self.name, "read frame", None, f"no new frame within {timeout_s:g} s")
             if self._newest is not None and self._newest.index > self._returned:
@@ -164,7 +220,26 @@ class Camera:
                 return self._newest
             if self.error is not None:
                 raise DeviceDisconnected(self.name, "read frame", None, f"capture failed: {self.error}")
-            raise DeviceDisconnected(self.name, "read frame", None, "the capture source ended (camera unplugged or end of recording)")
+            raise DeviceDisconnected(
+                self.name, "read frame", None, "the capture source ended (camera unplugged or end of recording)"
+            )
+
+    def report(self, timeout_s: float = 2.0) -> CameraReport:
+        """Take a frame and report resolution, fps, locks and the newest frame's age.
+        Raises DeviceTimeout or DeviceDisconnected as ``read`` does."""
+        self.trigger()
+        frame = self.read(timeout_s)
+        settings = source_settings(self.source)
+        height, width = frame.image.shape[:2]
+        return CameraReport(
+            width_px=width,
+            height_px=height,
+            fps=settings.get("fps"),
+            exposure_locked=settings.get("exposure_locked"),
+            white_balance_locked=settings.get("white_balance_locked"),
+            newest_age_s=max(0.0, self.clock.now() - frame.t_s),
+            frames_arrived=self._arrived,
+        )
 
     @property
     def frames_arrived(self) -> int:

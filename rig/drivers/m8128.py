@@ -87,8 +87,16 @@ def encode_frame(values: np.ndarray, packet: int) -> bytes:
 
 
 class M8128(GaugeBase):
-    def __init__(self, link: SerialLink, clock: Clock, *, name: str = "gauge", rate_hz: int = 100,
-                 buffer_size: int = 4096, fresh_after_s: float = 0.05):
+    def __init__(
+        self,
+        link: SerialLink,
+        clock: Clock,
+        *,
+        name: str = "gauge",
+        rate_hz: int = 100,
+        buffer_size: int = 4096,
+        fresh_after_s: float = 0.05,
+    ):
         super().__init__(clock, buffer_size, fresh_after_s=fresh_after_s)
         self.link = link
         self.name = name

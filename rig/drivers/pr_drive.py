@@ -1,22 +1,35 @@
 """A Modbus RTU stepper/servo drive in PR (path) mode as one rig axis.
 
 ``position = pulses * scale + offset`` with ``scale = travel_per_rev / pulses_per_rev``
-(mm or deg per pulse). A move writes path 0 (mode, target, speed, ramps) in one
-function-16 request and triggers it through the control register.
+(mm or deg per pulse). A move is the manual's "immediate trigger": path 0 (mode,
+target, speed, ramps, delay, and 0x10 in Pr9.07, which is mapped to the trigger
+register) in one function-16 request. Status and position are read from the status
+monitoring registers 0x1003 and 0x1012/0x1013. Registers and their sources:
+``pr_registers.py``.
 """
 
 from __future__ import annotations
 
 from rig.drivers import pr_registers as reg
-from rig.errors import DeviceFault
+from rig.errors import DeviceFault, DeviceRejected
 from rig.transport.modbus_bus import ModbusBus, join_int32, split_int32
 from rig.types import AxisStatus, MotionState
 
 
 class PrDriveAxis:
-    def __init__(self, bus: ModbusBus, *, name: str, device_id: int, pulses_per_rev: int,
-                 travel_per_rev: float, offset: float = 0.0, unit: str = "mm",
-                 accel_ms_per_krpm: int = 100, requires_home: bool = True):
+    def __init__(
+        self,
+        bus: ModbusBus,
+        *,
+        name: str,
+        device_id: int,
+        pulses_per_rev: int,
+        travel_per_rev: float,
+        offset: float = 0.0,
+        unit: str = "mm",
+        accel_ms_per_krpm: int = 100,
+        requires_home: bool = True,
+    ):
         if pulses_per_rev <= 0 or travel_per_rev == 0:
             raise ValueError(f"axis {name}: pulses_per_rev must be > 0 and travel_per_rev non-zero")
         self.bus = bus
@@ -54,21 +67,33 @@ class PrDriveAxis:
         """Refuse to run if the drive's pulses/rev differ from the config (wrong scale)."""
         (value,) = self._read(reg.PULSES_PER_REV, 1)
         if value != self.pulses_per_rev:
-            raise DeviceFault(self.label, "read pulses per rev", value,
-                              f"drive is set to {value} pulses/rev but the config says {self.pulses_per_rev}")
+            raise DeviceFault(
+                self.label,
+                "read pulses per rev",
+                value,
+                f"drive is set to {value} pulses/rev but the config says {self.pulses_per_rev}",
+            )
 
     def position(self) -> float:
         high, low = self._read(reg.COMMAND_POS_HIGH, 2)
         return self.to_position(join_int32(high, low))
 
+    def _alarm(self) -> str:
+        """The alarm warning once 0x1003 reports a fault; the code register is assumed,
+        so a drive that rejects it still reports the fault."""
+        try:
+            (alarm,) = self._read(reg.ALARM_CODE, 1)
+        except DeviceRejected as exc:
+            return f"ALARM (fault bit set; code register 0x{reg.ALARM_CODE:04X} rejected: {exc.reason})"
+        return f"ALARM 0x{alarm:04X}"
+
     def status(self) -> AxisStatus:
-        (control,) = self._read(reg.PR_CONTROL, 1)
-        (alarm,) = self._read(reg.ALARM_CODE, 1)
-        warnings = (f"ALARM 0x{alarm:04X}",) if alarm else ()
+        (state,) = self._read(reg.MOTION_STATE, 1)
+        warnings = (self._alarm(),) if state & reg.STATE_FAULT else ()
         return AxisStatus(
             position=self.position(),
-            state=MotionState.BUSY if control & reg.STATUS_RUNNING else MotionState.IDLE,
-            homed=bool(control & reg.STATUS_HOMED) or not self.requires_home,
+            state=MotionState.BUSY if state & reg.STATE_RUNNING else MotionState.IDLE,
+            homed=bool(state & reg.STATE_HOMED) or not self.requires_home,
             warnings=warnings,
         )
 
@@ -77,9 +102,20 @@ class PrDriveAxis:
 
     def move_to(self, target: float, speed: float) -> None:
         high, low = split_int32(self.to_native(target))
-        self._write(reg.PR0_MODE, [reg.MODE_ABSOLUTE, high, low, self.speed_to_rpm(speed),
-                                   self.accel_ms_per_krpm, self.accel_ms_per_krpm])
-        self._write(reg.PR_CONTROL, [reg.CTRL_TRIGGER_PR0])
+        # One frame, Pr9.00..Pr9.07; the last register triggers PR0 as it is written.
+        self._write(
+            reg.PR0_MODE,
+            [
+                reg.MODE_ABSOLUTE,
+                high,
+                low,
+                self.speed_to_rpm(speed),
+                self.accel_ms_per_krpm,
+                self.accel_ms_per_krpm,
+                0,
+                reg.CTRL_TRIGGER_PR0,
+            ],
+        )
 
     def stop(self) -> None:
         self._write(reg.PR_CONTROL, [reg.CTRL_EMERGENCY_STOP])

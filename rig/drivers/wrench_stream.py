@@ -7,14 +7,13 @@ from __future__ import annotations
 import bisect
 import collections
 import threading
-from typing import Callable
+from typing import Any, Callable, Protocol
 
 import numpy as np
 
 from rig.clock import Clock
 from rig.errors import DeviceError, DeviceTimeout
 from rig.types import Wrench
-
 
 STREAM_POLL_S = 0.02  # port timeout while streaming: how quickly the reader notices a stop
 DRAIN_QUIET_S = 0.05  # a stream has ended when nothing arrived for this long
@@ -52,7 +51,7 @@ class FrameSync:
 
     def feed(self, data: bytes) -> list[bytes]:
         self._buf += data
-        out = []
+        out: list[bytes] = []
         while True:
             i = self._buf.find(self.header)
             if i < 0:
@@ -124,6 +123,16 @@ class WrenchBuffer:
         return a.as_array() * (1 - w) + b.as_array() * w, min(t_s - a.t_s, b.t_s - t_s)
 
 
+class FrameCutter(Protocol):
+    """Cuts checked frames out of stream chunks, counting what it refused (FrameSync, M8128's
+    PacketSync, the Net F/T's RdtSync)."""
+
+    frames_bad: int
+    bytes_skipped: int
+
+    def feed(self, data: bytes) -> list[bytes]: ...
+
+
 class StreamReader:
     """Reads chunks in a thread, cuts frames, decodes and buffers them.
 
@@ -131,8 +140,15 @@ class StreamReader:
     of ``check``; it is never swallowed.
     """
 
-    def __init__(self, read_chunk: Callable[[], bytes], sync: FrameSync,
-                 decode: Callable[[bytes], np.ndarray], buffer: WrenchBuffer, clock: Clock, name: str):
+    def __init__(
+        self,
+        read_chunk: Callable[[], bytes],
+        sync: FrameCutter,
+        decode: Callable[[bytes], np.ndarray],
+        buffer: WrenchBuffer,
+        clock: Clock,
+        name: str,
+    ):
         self.read_chunk = read_chunk
         self.sync = sync
         self.decode = decode
@@ -183,6 +199,26 @@ class GaugeBase:
         self.stale_after_s = stale_after_s
         self._reader: StreamReader | None = None
 
+    # -- what each driver provides -----------------------------------------------------
+    def _poll_raw(self) -> np.ndarray:
+        """One untared (6,) sample, polled now (N, N·mm)."""
+        raise NotImplementedError
+
+    def _stream_open(self) -> Callable[[], bytes]:
+        """Start streaming; returns a reader of the next chunk (b"" when none came in time)."""
+        raise NotImplementedError
+
+    def _stream_close(self) -> None:
+        """Stop streaming and drop what is still in flight."""
+        raise NotImplementedError
+
+    def make_sync(self) -> FrameCutter:
+        raise NotImplementedError
+
+    def decode(self, frame: bytes) -> np.ndarray:
+        """One checked frame to a (6,) untared sample (N, N·mm)."""
+        raise NotImplementedError
+
     @property
     def streaming(self) -> bool:
         return self._reader is not None
@@ -198,7 +234,7 @@ class GaugeBase:
             reader.stop()
             self._stream_close()
 
-    def stream_stats(self) -> dict:
+    def stream_stats(self) -> dict[str, Any]:
         sync = self._reader.sync if self._reader else None
         return {
             "samples": self.buffer.total,
@@ -217,7 +253,8 @@ class GaugeBase:
         for _ in range(self.AWAIT_TRIES):
             if wait(0.025):
                 return
-            self._reader.check()
+            if self._reader is not None:
+                self._reader.check()
             self.clock.sleep(0.01)
         raise DeviceTimeout(self.label, what, None, "no stream sample arrived")
 
@@ -230,6 +267,7 @@ class GaugeBase:
             before = self.buffer.total
             self._await(lambda timeout: self.buffer.wait_new(before, 1, timeout_s=timeout), "stream")
             sample = self.buffer.latest()
+            assert sample is not None  # _await returns only once a sample has arrived
         return sample
 
     def read(self) -> Wrench:
@@ -246,7 +284,9 @@ class GaugeBase:
             return self.read()
         t = self.clock.now() + self.fresh_after_s
         self._await(lambda timeout: self.buffer.wait_after(t, timeout), "stream")
-        return self.buffer.latest().minus(self.bias)
+        sample = self.buffer.latest()
+        assert sample is not None  # _await returns only once a sample stamped after t has arrived
+        return sample.minus(self.bias)
 
     def sample_at(self, t_s: float, timeout_s: float = 2.0) -> tuple[np.ndarray, float]:
         """The tared wrench interpolated at ``t_s`` and the skew (s) to the nearest sample.

@@ -10,8 +10,8 @@ from __future__ import annotations
 
 import itertools
 
-from rig.errors import DeviceRejected, DeviceTimeout, FramingError
 from rig.drivers import zaber_ascii as za
+from rig.errors import DeviceRejected, DeviceTimeout, FramingError
 from rig.transport.serial_link import SerialLink
 from rig.types import AxisStatus, MotionState
 
@@ -47,7 +47,9 @@ class ZaberChain:
                     self.recovered += 1
                 if reply.flag == "RJ":
                     reason = reply.data if reply.data in za.REJECTION_REASONS else f"unknown ({reply.data})"
-                    raise DeviceRejected(name, frame.decode().strip(), reply.raw.decode(errors="replace").strip(), reason)
+                    raise DeviceRejected(
+                        name, frame.decode().strip(), reply.raw.decode(errors="replace").strip(), reason
+                    )
                 return reply
         assert last is not None
         raise last
@@ -74,8 +76,17 @@ class ZaberChain:
 class ZaberAxis:
     """One Zaber axis. ``position = native * scale + offset`` (scale may be negative)."""
 
-    def __init__(self, chain: ZaberChain, *, name: str, device: int, axis: int = 1,
-                 scale: float, offset: float = 0.0, unit: str = "mm"):
+    def __init__(
+        self,
+        chain: ZaberChain,
+        *,
+        name: str,
+        device: int,
+        axis: int = 1,
+        scale: float,
+        offset: float = 0.0,
+        unit: str = "mm",
+    ):
         if scale == 0:
             raise ValueError(f"axis {name}: scale must be non-zero")
         self.chain = chain

@@ -34,8 +34,17 @@ WARNING_FLAGS = {
 }
 NOTICE_FLAGS = {"NC", "NI", "ND", "NU", "NJ"}
 REJECTION_REASONS = {
-    "AGAIN", "BADAXIS", "BADCOMMAND", "BADDATA", "BADMESSAGEID", "DEVICEONLY", "FULL",
-    "LOCKSTEP", "NOACCESS", "PARKED", "STATUSBUSY",
+    "AGAIN",
+    "BADAXIS",
+    "BADCOMMAND",
+    "BADDATA",
+    "BADMESSAGEID",
+    "DEVICEONLY",
+    "FULL",
+    "LOCKSTEP",
+    "NOACCESS",
+    "PARKED",
+    "STATUSBUSY",
 }
 NOT_REFERENCED = {"WH", "WR"}
 
@@ -52,8 +61,9 @@ def checksum(body: str) -> str:
     return f"{(-sum(body.encode('ascii'))) & 0xFF:02X}"
 
 
-def format_command(device: int, axis: int, command: str, message_id: int | None = None,
-                   with_checksum: bool = False) -> bytes:
+def format_command(
+    device: int, axis: int, command: str, message_id: int | None = None, with_checksum: bool = False
+) -> bytes:
     body = f"{device} {axis}"
     if message_id is not None:
         body += f" {message_id:02d}"

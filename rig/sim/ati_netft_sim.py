@@ -26,10 +26,19 @@ INTERNAL_RATE_HZ = 7000  # the Net F/T's own sample rate; ft_sequence counts the
 
 
 class AtiNetFtSim:
-    def __init__(self, world, *, rate_hz: float = 1000.0, buffer_size: int = 10,
-                 counts_per_force: int = 1_000_000, counts_per_torque: int = 1_000_000,
-                 force_unit: str = "N", torque_unit: str = "N-m",
-                 rated: tuple[float, ...] = (330, 330, 990, 30, 30, 30), faults: FaultInjector | None = None):
+    def __init__(
+        self,
+        world,
+        *,
+        rate_hz: float = 1000.0,
+        buffer_size: int = 10,
+        counts_per_force: int = 1_000_000,
+        counts_per_torque: int = 1_000_000,
+        force_unit: str = "N",
+        torque_unit: str = "N-m",
+        rated: tuple[float, ...] = (330, 330, 990, 30, 30, 30),
+        faults: FaultInjector | None = None,
+    ):
         self.world = world
         self.clock = world.clock
         self.rate_hz = rate_hz
@@ -59,8 +68,10 @@ class AtiNetFtSim:
         self.http_port = self.http.server_address[1]
         self.host = "127.0.0.1"
         self._stop = threading.Event()
-        self._threads = [threading.Thread(target=self._run, name="sim-netft-rdt", daemon=True),
-                         threading.Thread(target=self.http.serve_forever, name="sim-netft-http", daemon=True)]
+        self._threads = [
+            threading.Thread(target=self._run, name="sim-netft-rdt", daemon=True),
+            threading.Thread(target=self.http.serve_forever, name="sim-netft-http", daemon=True),
+        ]
         for t in self._threads:
             t.start()
         if hasattr(self.clock, "add_listener"):
@@ -72,19 +83,32 @@ class AtiNetFtSim:
             return self.xml_override
         fu = {v: k for k, v in rdt.FORCE_UNIT_CODES.items()}[self.force_unit]
         tu = {v: k for k, v in rdt.TORQUE_UNIT_CODES.items()}[self.torque_unit]
-        fields = {"setcfgsel": 0, "cfgnam": "sim", "cfgcalsn": "FT00000", "cfgfu": fu, "scfgfu": self.force_unit,
-                  "cfgtu": tu, "scfgtu": self.torque_unit, "cfgcpf": self.cpf, "cfgcpt": self.cpt,
-                  "cfgmr": ";".join(f"{v:g}" for v in self.rated), "comrdtrate": int(self.rate_hz),
-                  "comrdtbsiz": self.buffer_size, "runstat": f"0x{self.status:08X}", "runrate": INTERNAL_RATE_HZ}
+        fields = {
+            "setcfgsel": 0,
+            "cfgnam": "sim",
+            "cfgcalsn": "FT00000",
+            "cfgfu": fu,
+            "scfgfu": self.force_unit,
+            "cfgtu": tu,
+            "scfgtu": self.torque_unit,
+            "cfgcpf": self.cpf,
+            "cfgcpt": self.cpt,
+            "cfgmr": ";".join(f"{v:g}" for v in self.rated),
+            "comrdtrate": int(self.rate_hz),
+            "comrdtbsiz": self.buffer_size,
+            "runstat": f"0x{self.status:08X}",
+            "runrate": INTERNAL_RATE_HZ,
+        }
         body = "".join(f"<{k}>{v}</{k}>" for k, v in fields.items())
         return f'<?xml version="1.0"?>\n<netft>{body}</netft>'.encode()
 
     # -- requests ----------------------------------------------------------------
     def _counts(self, values: np.ndarray) -> np.ndarray:
         """N / N·mm → counts in the configured units, saturating at int32."""
-        per = np.repeat([self.cpf / rdt.N_PER_FORCE_UNIT[self.force_unit],
-                         self.cpt / rdt.NMM_PER_TORQUE_UNIT[self.torque_unit]], 3)
-        return np.clip(np.round(values * per), -2**31, 2**31 - 1).astype(np.int64)
+        per = np.repeat(
+            [self.cpf / rdt.N_PER_FORCE_UNIT[self.force_unit], self.cpt / rdt.NMM_PER_TORQUE_UNIT[self.torque_unit]], 3
+        )
+        return np.clip(np.round(values * per), -(2**31), 2**31 - 1).astype(np.int64)
 
     def handle(self, data: bytes, addr, now_s: float) -> None:
         with self._lock:
@@ -131,14 +155,14 @@ class AtiNetFtSim:
                 counts = self._counts(w) - self.bias_counts
                 if self.counts_override is not None:
                     counts, self.counts_override = self.counts_override, None
-                counts = np.clip(counts, -2**31, 2**31 - 1)
+                counts = np.clip(counts, -(2**31), 2**31 - 1)
                 records.append(rdt.pack_record(self._seq, int(t * INTERNAL_RATE_HZ), self.status, counts))
             if self._mode == rdt.CMD_REALTIME:
                 datagrams = records
             else:
                 self._pending += records
                 n = len(self._pending) // self.buffer_size * self.buffer_size
-                datagrams = [b"".join(self._pending[i:i + self.buffer_size]) for i in range(0, n, self.buffer_size)]
+                datagrams = [b"".join(self._pending[i : i + self.buffer_size]) for i in range(0, n, self.buffer_size)]
                 self._pending = self._pending[n:]
             if self._remaining and self._seq >= self._remaining:
                 self.schedule.stop()

@@ -6,7 +6,7 @@ as it would open ``/dev/ttyUSB0``; pyserial runs unchanged.
 Replies leave at simulated time (a fault's delay is simulated seconds). The server
 registers its URL as an in-process peer (``rig.transport.peer``) so that a driver's
 reply timeout counts simulated time and cannot fire because this thread was starved
-of CPU (issue 12, finding 7). os.read/os.write/select are retried on EINTR by Python
+of CPU on a loaded machine. os.read/os.write/select are retried on EINTR by Python
 itself (PEP 475); nothing here calls tcdrain.
 """
 
@@ -22,12 +22,12 @@ import threading
 import tty
 from typing import Protocol
 
-from rig.clock import Clock
+from rig.clock import Clock, ManualClock
 from rig.sim.faults import FaultInjector
 from rig.transport import peer as peers
 
 # Real seconds a simulator may take to answer a request before a driver calls it dead.
-# Far beyond any CPU starvation seen (finding 7: a loaded 2-core machine stalled the
+# Far beyond any CPU starvation seen (a loaded 2-core machine stalled the
 # thread past 0.3 s), and still a bounded wait for a hung simulator.
 STALL_LIMIT_S = 10.0
 
@@ -58,8 +58,15 @@ class RequestReplyDevice:
 class SimServer:
     """One device model behind one pty or TCP port."""
 
-    def __init__(self, model: DeviceModel, clock: Clock, *, transport: str = "pty",
-                 faults: FaultInjector | None = None, name: str = "sim"):
+    def __init__(
+        self,
+        model: DeviceModel,
+        clock: Clock,
+        *,
+        transport: str = "pty",
+        faults: FaultInjector | None = None,
+        name: str = "sim",
+    ):
         if transport not in ("pty", "tcp"):
             raise ValueError(f"transport must be 'pty' or 'tcp', got {transport!r}")
         self.model = model
@@ -118,12 +125,13 @@ class SimServer:
                     self._conn, _ = self._listen.accept()
                     self._conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
                     continue
+                conn = self._conn  # tcp: the accepted connection (the listening socket was handled above)
                 try:
-                    data = os.read(self._master, 65536) if self.transport == "pty" else self._conn.recv(65536)
+                    data = os.read(self._master, 65536) if conn is None else conn.recv(65536)
                 except OSError:
                     return
-                if not data and self.transport == "tcp":
-                    self._conn.close()
+                if not data and conn is not None:
+                    conn.close()
                     self._conn = None
                     continue
                 self.bytes_in += len(data)
@@ -198,10 +206,10 @@ class SimServer:
         finally:
             self._model_lock.release()
         if in_time:
-            if self._discrete and min(in_time) > now:
+            if isinstance(self.clock, ManualClock) and min(in_time) > now:
                 self.clock.advance(min(in_time) - now)  # emits it, through pump
             return peers.Outlook.COMING
-        if self._discrete:
+        if isinstance(self.clock, ManualClock):
             self.clock.advance(timeout_s)  # waiting out a device timeout takes simulated time
         return peers.Outlook.SILENT
 

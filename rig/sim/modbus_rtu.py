@@ -3,17 +3,21 @@
 The drivers frame requests with ``rig.transport.modbus_frames``; the simulators parse
 and build frames with this separate implementation, and the exchange tests pin the
 bytes to the manuals, so a test exercises two codecs against each other.
-Like a real RS-485 slave, a frame with a bad CRC or for another device id gets no
-answer at all.
+Like a real RS-485 slave (Modbus over Serial Line v1.02 §2.1, §2.4.1), a frame with a
+bad CRC or for another device id gets no answer at all: on a shared line only the
+addressed device may talk. (pymodbus 3.16's server answers an unknown id with exception
+11, GATEWAY TARGET DEVICE FAILED TO RESPOND, unless ``ignore_missing_devices``; its
+code 4 is for a datastore error. Both are gateway answers, not a serial slave's.) Device
+id 0 is the broadcast address: a write is carried out by every device, and none
+answers (§2.1: broadcast requests are writes; no reply).
 """
 
 from __future__ import annotations
 
-from rig.sim.link import RequestReplyDevice
-
 import struct
 from typing import Protocol
 
+from rig.sim.link import RequestReplyDevice
 from rig.transport.crc import append_crc, crc_ok
 
 
@@ -27,6 +31,7 @@ ILLEGAL_FUNCTION = 1
 ILLEGAL_DATA_ADDRESS = 2
 ILLEGAL_DATA_VALUE = 3
 SERVER_DEVICE_FAILURE = 4
+BROADCAST_ID = 0
 
 
 class RegisterDevice(Protocol):
@@ -59,7 +64,7 @@ class RtuServer(RequestReplyDevice):
 
     def feed(self, data: bytes, now_s: float) -> list[bytes]:
         self._buf += data
-        replies = []
+        replies: list[bytes] = []
         while True:
             n = _request_length(self._buf)
             if n is None or len(self._buf) < n:
@@ -75,6 +80,11 @@ class RtuServer(RequestReplyDevice):
 
     def handle(self, pdu: bytes, now_s: float) -> bytes | None:
         device_id, fc = pdu[0], pdu[1]
+        if device_id == BROADCAST_ID:
+            if fc in (6, 16):
+                for other_id in list(self.devices):
+                    self.handle(bytes([other_id]) + pdu[1:], now_s)  # each carries it out; replies dropped
+            return None
         device = self.devices.get(device_id)
         if device is None:
             return None
@@ -93,7 +103,7 @@ class RtuServer(RequestReplyDevice):
                 address, count, nbytes = struct.unpack(">HHB", pdu[2:7])
                 if nbytes != 2 * count or len(pdu) != 7 + nbytes:
                     raise ModbusException(ILLEGAL_DATA_VALUE)
-                values = list(struct.unpack(f">{count}H", pdu[7:7 + nbytes]))
+                values = list(struct.unpack(f">{count}H", pdu[7 : 7 + nbytes]))
                 device.write_registers(address, values, now_s)
                 return pdu[:6]
             raise ModbusException(ILLEGAL_FUNCTION)

@@ -1,4 +1,10 @@
-"""A simulated PR-mode Modbus drive moving one of the world's stages."""
+"""A simulated PR-mode Modbus drive moving one of the world's stages.
+
+Answers the registers ``rig/drivers/pr_registers.py`` documents (sources there): the
+eight PR0 registers, written one by one or in the manual's single function-16 frame
+whose last register (0x6207) triggers the path; 0x6002 commands; the 0x1003 motion
+state and the 0x1012–0x1015 positions. Anything else is ILLEGAL DATA ADDRESS.
+"""
 
 from __future__ import annotations
 
@@ -7,7 +13,8 @@ from rig.sim.modbus_rtu import ILLEGAL_DATA_ADDRESS, ILLEGAL_DATA_VALUE, ModbusE
 from rig.sim.stage import SimStage, StageFault
 from rig.transport.modbus_bus import join_int32, split_int32
 
-STALL_ALARM = 0x0180  # the alarm the simulator raises for a stalled motor
+STALL_ALARM = 0x0180  # the alarm code the simulator reports for a stalled motor (ASSUMED code)
+PR0_REGISTERS = range(reg.PR0_MODE, reg.PR0_MODE + reg.PR0_LENGTH)
 
 
 class PrDriveSim:
@@ -17,12 +24,19 @@ class PrDriveSim:
         self.regs: dict[int, int] = {
             reg.PULSES_PER_REV: pulses_per_rev,
             reg.PR0_MODE: reg.MODE_ABSOLUTE,
-            reg.PR0_POS_HIGH: 0, reg.PR0_POS_LOW: 0,
-            reg.PR0_VELOCITY_RPM: 60, reg.PR0_ACCEL_MS: 100, reg.PR0_DECEL_MS: 100,
+            reg.PR0_POS_HIGH: 0,
+            reg.PR0_POS_LOW: 0,
+            reg.PR0_VELOCITY_RPM: 60,
+            reg.PR0_ACCEL_MS: 100,
+            reg.PR0_DECEL_MS: 100,
+            reg.PR0_DELAY_MS: 0,
+            reg.PR0_TRIGGER: 0,
+            reg.PR_CONTROL: 0,  # ASSUMED: a read returns the last command written
             reg.JOG: 0,
         }
         self.zero_pulses = 0  # set by CTRL_SET_ZERO: command position 0 here
         self.homed_since_power_up = stage.homed
+        self.commanded = False  # a path or homing was triggered since power-up
 
     @property
     def pulse(self) -> float:
@@ -31,17 +45,30 @@ class PrDriveSim:
     def _pulses(self, now_s: float) -> int:
         return round(self.stage.position(now_s) / self.pulse) - self.zero_pulses
 
+    def motion_state(self, now_s: float) -> int:
+        """0x1003: bit0 fault, bit1 enabled, bit2 running, bit4/bit5 command/path done, bit6 homed."""
+        busy = self.stage.busy(now_s)
+        if not busy and self.stage.homed:
+            self.homed_since_power_up = True
+        state = reg.STATE_ENABLED  # the simulated drive is always enabled
+        if self.stage.stalled:
+            state |= reg.STATE_FAULT
+        if busy:
+            state |= reg.STATE_RUNNING
+        elif self.commanded:
+            state |= reg.STATE_COMMAND_DONE | reg.STATE_PATH_DONE
+        if self.homed_since_power_up:
+            state |= reg.STATE_HOMED
+        return state
+
     def read_registers(self, address: int, count: int, now_s: float) -> list[int]:
         out = []
         for a in range(address, address + count):
-            if a == reg.PR_CONTROL:
-                busy = self.stage.busy(now_s)
-                if not busy and self.stage.homed:
-                    self.homed_since_power_up = True
-                out.append((reg.STATUS_RUNNING if busy else 0) | (reg.STATUS_HOMED if self.homed_since_power_up else 0))
-            elif a in (reg.COMMAND_POS_HIGH, reg.COMMAND_POS_LOW):
-                high, low = split_int32(self._pulses(now_s))
-                out.append(high if a == reg.COMMAND_POS_HIGH else low)
+            if a == reg.MOTION_STATE:
+                out.append(self.motion_state(now_s))
+            elif a in (reg.COMMAND_POS_HIGH, reg.COMMAND_POS_LOW, reg.FEEDBACK_POS_HIGH, reg.FEEDBACK_POS_LOW):
+                high, low = split_int32(self._pulses(now_s))  # no following error in the simulation
+                out.append(high if a in (reg.COMMAND_POS_HIGH, reg.FEEDBACK_POS_HIGH) else low)
             elif a == reg.ALARM_CODE:
                 out.append(STALL_ALARM if self.stage.stalled else 0)
             elif a in self.regs:
@@ -51,37 +78,43 @@ class PrDriveSim:
         return out
 
     def write_registers(self, address: int, values: list[int], now_s: float) -> None:
-        for offset, value in enumerate(values):
-            a = address + offset
-            if a == reg.PR_CONTROL:
-                self._control(value, now_s)
-            elif a in self.regs and a not in (reg.PULSES_PER_REV,):
+        addresses = range(address, address + len(values))
+        if any(a not in self.regs for a in addresses):
+            raise ModbusException(ILLEGAL_DATA_ADDRESS)  # nothing is written
+        for a, value in zip(addresses, values):
+            if a in (reg.PR_CONTROL, reg.PR0_TRIGGER):  # Pr9.07 is mapped to Pr8.02 [CS2RS]
                 self.regs[a] = value
+                self._control(value, now_s)
             elif a == reg.PULSES_PER_REV:
                 if value <= 0:
                     raise ModbusException(ILLEGAL_DATA_VALUE)
                 self.regs[a] = value
             else:
-                raise ModbusException(ILLEGAL_DATA_ADDRESS)
+                self.regs[a] = value
 
     def _control(self, value: int, now_s: float) -> None:
         if value == reg.CTRL_TRIGGER_PR0:
+            self.commanded = True
             mode = self.regs[reg.PR0_MODE]
             target_pulses = join_int32(self.regs[reg.PR0_POS_HIGH], self.regs[reg.PR0_POS_LOW])
             if mode == reg.MODE_RELATIVE:
                 target_pulses += self._pulses(now_s)
             elif mode != reg.MODE_ABSOLUTE:
                 raise ModbusException(ILLEGAL_DATA_VALUE)
-            speed = self.regs[reg.PR0_VELOCITY_RPM] / 60.0 * self.travel_per_rev
+            rpm = self.regs[reg.PR0_VELOCITY_RPM]
+            if rpm == 0:
+                return  # ASSUMED: a 0 rpm path ends where it starts (the manual's own example sends 0)
+            speed = rpm / 60.0 * self.travel_per_rev
             try:
                 self.stage.move_to((target_pulses + self.zero_pulses) * self.pulse, speed, now_s)
             except StageFault as exc:
                 raise ModbusException(ILLEGAL_DATA_VALUE) from exc
         elif value == reg.CTRL_HOME:
+            self.commanded = True
             self.stage.home(now_s)
         elif value == reg.CTRL_SET_ZERO:
             self.zero_pulses = round(self.stage.position(now_s) / self.pulse)
         elif value == reg.CTRL_EMERGENCY_STOP:
             self.stage.stop(now_s)
-        else:
+        elif value != 0:
             raise ModbusException(ILLEGAL_DATA_VALUE)

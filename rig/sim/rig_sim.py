@@ -1,21 +1,22 @@
 """The built-in simulated rig: every device's simulator on its own pty or TCP port.
 
 x, y and z are three Zaber devices daisy-chained on one port, θ a PR-mode Modbus
-drive, the gauge an FT300 (or an M8128). ``config_toml()`` is a rig config pointing
-at those ports, loaded through the same validator as a user's file, so the drivers
-open the simulators exactly as they would open hardware.
+drive, the gauge any registered kind with a simulator (rig/config/registry.py; an
+FT300 by default). ``config_toml()`` is a rig config pointing at those ports, loaded
+through the same validator as a user's file, so the drivers open the simulators
+exactly as they would open hardware.
 """
 
 from __future__ import annotations
 
 from rig.clock import Clock, SystemClock
 from rig.config import RigConfig, parse_config
-from rig.sim.camera_sim import SimCameraSource
-from rig.sim.ft300_sim import Ft300Sim
+from rig.config.registry import kind, load
+from rig.sim.camera_sim import CameraStreamServer, SimCameraSource
 from rig.sim.link import SimServer
-from rig.sim.m8128_sim import M8128Sim
 from rig.sim.modbus_rtu import RtuServer
 from rig.sim.pr_drive_sim import PrDriveSim
+from rig.sim.served import ServedDevice
 from rig.sim.world import SimWorld, WorldSpec
 from rig.sim.zaber_sim import ZaberChainSim, ZaberDeviceSim
 from sensor_sim.world_contact import rig_contact
@@ -29,14 +30,29 @@ THETA_DEVICE_ID = 1
 # simulated time (rig/transport/peer.py), so machine load cannot trip it; a client of
 # `rig sim serve` in another process waits this long in real time, as on hardware.
 DEVICE_TIMEOUT_S = 0.3
+# What `rig sim serve` writes instead: its clients wait in real time, writes included, and on a
+# loaded 2-core machine a 0.3 s write timeout was seen to trip mid-run against a served rig.
+SERVED_DEVICE_TIMEOUT_S = 1.0
+CAMERA_SIZE_PX = 256  # the simulated camera renders a square gel pad
 
 
 class SimulatedRig:
-    def __init__(self, clock: Clock | None = None, *, transport: str = "pty", gauge: str = "ft300",
-                 spec: WorldSpec | None = None, seed: int = 0, indenter: str = "sphere10mm",
-                 sensor_kind: str = "rgb", contact=None, gauge_rate_hz: float = 100.0):
-        if gauge not in ("ft300", "m8128", "ati_netft"):
-            raise ValueError(f"simulated gauge must be 'ft300', 'm8128' or 'ati_netft', got {gauge!r}")
+    def __init__(
+        self,
+        clock: Clock | None = None,
+        *,
+        transport: str = "pty",
+        gauge: str = "ft300",
+        spec: WorldSpec | None = None,
+        seed: int = 0,
+        indenter: str = "sphere10mm",
+        sensor_kind: str = "rgb",
+        contact=None,
+        gauge_rate_hz: float = 100.0,
+    ):
+        gauge_row = kind("gauge", gauge, path="<built-in simulated rig>", key="gauge")
+        if gauge_row.simulator is None:
+            raise ValueError(f"gauge kind {gauge!r} has no simulator in its registry row")
         self.clock = clock or SystemClock()
         if contact is None:
             contact = rig_contact(indenter)
@@ -52,83 +68,134 @@ class SimulatedRig:
         self.gauge_latency_s = 0.0 if self.discrete_time else round(max(0.05, 0.08 * factor), 3)
         self.gauge_kind = gauge
         stages = self.world.stages
-        self.zaber = ZaberChainSim(self.clock, {
-            number: ZaberDeviceSim(stages[axis], ZABER_MICROSTEP_MM) for axis, number in ZABER_DEVICES.items()
-        })
+        self.zaber = ZaberChainSim(
+            self.clock,
+            {number: ZaberDeviceSim(stages[axis], ZABER_MICROSTEP_MM) for axis, number in ZABER_DEVICES.items()},
+        )
         self.theta = PrDriveSim(stages["theta"], pulses_per_rev=THETA_PULSES_PER_REV, travel_per_rev=THETA_DEG_PER_REV)
         self.servers: dict[str, SimServer] = {}
+        self.gauge_sim: ServedDevice | None = None
+        self.camera_server: CameraStreamServer | None = None  # serve_camera(): frames for other processes
         try:
             self.servers["stages"] = SimServer(self.zaber, self.clock, transport=transport, name="zaber")
-            self.servers["theta"] = SimServer(RtuServer({THETA_DEVICE_ID: self.theta}), self.clock,
-                                              transport=transport, name="pr-drive")
-            self.netft = None
-            if gauge == "ati_netft":  # UDP + HTTP on loopback, not a byte-stream server
-                from rig.sim.ati_netft_sim import AtiNetFtSim
-
-                self.netft = AtiNetFtSim(self.world, rate_hz=max(gauge_rate_hz, 1000.0))
-            else:
-                model = (Ft300Sim(self.world, rate_hz=gauge_rate_hz) if gauge == "ft300"
-                         else M8128Sim(self.world, rate_hz=gauge_rate_hz))
-                model.schedule.report_on_advance = self.discrete_time
-                self.servers["gauge"] = SimServer(model, self.clock, transport=transport, name=gauge)
+            self.servers["theta"] = SimServer(
+                RtuServer({THETA_DEVICE_ID: self.theta}), self.clock, transport=transport, name="pr-drive"
+            )
+            self.gauge_sim = load(gauge_row.simulator)(
+                self.world, self.clock, transport=transport, rate_hz=gauge_rate_hz
+            )
+            self.servers.update(self.gauge_sim.servers)
         except Exception:
             self.close()
             raise
 
-    def config_toml(self, *, with_camera: bool = True) -> str:
+    def config_toml(self, *, with_camera: bool = True, device_timeout_s: float = DEVICE_TIMEOUT_S) -> str:
         geo = self.world.spec.geometry
         stage_specs = self.world.spec.stages
-        lines = ['[rig]', 'name = "simulated rig"', '']
+        lines = ["[rig]", 'name = "simulated rig"', ""]
         for axis, number in ZABER_DEVICES.items():
             g, s = geo[axis], stage_specs[axis]
             scale = ZABER_MICROSTEP_MM * g.sign
             ends = sorted(g.sign * (p - g.origin) for p in s.travel)
             lines += [
-                f'[axes.{axis}]', 'driver = "zaber"', f'port = "{self.servers["stages"].url}"',
-                f'device = {number}', f'scale = {scale!r}', f'offset = {-g.sign * g.origin * 1.0!r}',
-                f'travel = [{ends[0]!r}, {ends[1]!r}]', f'max_speed = {s.max_speed!r}', 'jog_speed = 1.0',
-                f'timeout_s = {DEVICE_TIMEOUT_S!r}', '',
+                f"[axes.{axis}]",
+                'driver = "zaber"',
+                f'port = "{self.servers["stages"].url}"',
+                f"device = {number}",
+                f"scale = {scale!r}",
+                f"offset = {-g.sign * g.origin * 1.0!r}",
+                f"travel = [{ends[0]!r}, {ends[1]!r}]",
+                f"max_speed = {s.max_speed!r}",
+                "jog_speed = 1.0",
+                f"timeout_s = {device_timeout_s!r}",
+                "",
             ]
         g, s = geo["theta"], stage_specs["theta"]
         lines += [
-            '[axes.theta]', 'driver = "pr_drive"', 'unit = "deg"', f'port = "{self.servers["theta"].url}"',
-            f'device = {THETA_DEVICE_ID}', f'pulses_per_rev = {THETA_PULSES_PER_REV}',
-            f'travel_per_rev = {THETA_DEG_PER_REV!r}', f'offset = {-g.origin!r}',
-            f'travel = [{s.travel[0] - g.origin!r}, {s.travel[1] - g.origin!r}]',
-            f'max_speed = {s.max_speed!r}', 'jog_speed = 5.0', f'timeout_s = {DEVICE_TIMEOUT_S!r}', '',
+            "[axes.theta]",
+            'driver = "pr_drive"',
+            'unit = "deg"',
+            f'port = "{self.servers["theta"].url}"',
+            f"device = {THETA_DEVICE_ID}",
+            f"pulses_per_rev = {THETA_PULSES_PER_REV}",
+            f"travel_per_rev = {THETA_DEG_PER_REV!r}",
+            f"offset = {-g.origin!r}",
+            f"travel = [{s.travel[0] - g.origin!r}, {s.travel[1] - g.origin!r}]",
+            f"max_speed = {s.max_speed!r}",
+            "jog_speed = 5.0",
+            f"timeout_s = {device_timeout_s!r}",
+            "",
         ]
-        if self.gauge_kind == "ft300":
-            lines += ['[gauge]', 'driver = "ft300"', f'port = "{self.servers["gauge"].url}"', 'device_id = 9',
-                      'mode = "stream"', f'fresh_after_s = {self.gauge_latency_s!r}', '']
-        elif self.gauge_kind == "ati_netft":
-            lines += ['[gauge]', 'driver = "ati_netft"', 'port = "127.0.0.1"', f'rdt_port = {self.netft.rdt_port}',
-                      f'http_port = {self.netft.http_port}', 'mode = "stream"',
-                      f'fresh_after_s = {self.gauge_latency_s!r}', '']
-        else:
-            lines += ['[gauge]', 'driver = "m8128"', f'port = "{self.servers["gauge"].url}"', 'mode = "stream"',
-                      f'fresh_after_s = {self.gauge_latency_s!r}', '']
+        lines += ["[gauge]", f'driver = "{self.gauge_kind}"']
+        assert self.gauge_sim is not None  # set in __init__ (close() is the only place it may be missing)
+        lines += [f"{key} = {toml_value(value)}" for key, value in self.gauge_sim.keys.items()]
+        lines += ['mode = "stream"', f"fresh_after_s = {self.gauge_latency_s!r}", ""]
         if with_camera:
-            lines += ['[camera]', 'driver = "sim"', 'width = 256', 'height = 256', 'fps = 25.0',
-                      'discard_frames = 2', '']
-        lines += ['[safety]', 'max_force_N = [10.0, 10.0, 40.0]', 'max_torque_Nmm = [300.0, 300.0, 200.0]', '']
+            served = self.camera_server
+            lines += (
+                ["[camera]", 'driver = "stream"', f'device = "{served.url}"']
+                if served
+                else ["[camera]", 'driver = "sim"']
+            )
+            lines += [f"width = {CAMERA_SIZE_PX}", f"height = {CAMERA_SIZE_PX}", "fps = 25.0", "discard_frames = 2"]
+            solver = getattr(self.world.contact, "solver", None)
+            if solver is not None:  # the rendered pad's calibration, stored in every run file
+                lines.append(f"mm_per_px = {solver.geometry.width_mm / CAMERA_SIZE_PX!r}")
+            lines.append("")
+        lines += ["[safety]", "max_force_N = [10.0, 10.0, 40.0]", "max_torque_Nmm = [300.0, 300.0, 200.0]", ""]
         return "\n".join(lines)
 
     def config(self, *, with_camera: bool = True) -> RigConfig:
         return parse_config(self.config_toml(with_camera=with_camera), "<built-in simulated rig>")
 
-    def camera_source(self, *, fps: float = 25.0, height: int = 256, width: int = 256,
-                      triggered: bool = False) -> SimCameraSource:
-        return SimCameraSource(self.world, self.clock, fps=fps, height=height, width=width, kind=self.sensor_kind,
-                               triggered=triggered or self.triggered_camera)
+    def camera_source(
+        self, *, fps: float = 25.0, height: int = 256, width: int = 256, triggered: bool = False
+    ) -> SimCameraSource:
+        return SimCameraSource(
+            self.world,
+            self.clock,
+            fps=fps,
+            height=height,
+            width=width,
+            kind=self.sensor_kind,
+            triggered=triggered or self.triggered_camera,
+        )
+
+    @property
+    def netft(self):
+        """The simulated ATI Net F/T when that is the gauge (its UDP and HTTP ports), else None."""
+        return self.gauge_sim.model if self.gauge_kind == "ati_netft" and self.gauge_sim is not None else None
+
+    def serve_camera(self) -> CameraStreamServer:
+        """Serve the camera on a loopback TCP port; ``config_toml()`` then names it (driver
+        "stream"), so another process (`rig sim serve`'s clients) reads frames like a device."""
+        if self.camera_server is None:
+            source = self.camera_source(height=CAMERA_SIZE_PX, width=CAMERA_SIZE_PX, triggered=True)
+            self.camera_server = CameraStreamServer(source)
+        return self.camera_server
 
     def close(self) -> None:
+        camera_server = getattr(self, "camera_server", None)
+        if camera_server is not None:
+            camera_server.close()
+        gauge_sim = getattr(self, "gauge_sim", None)
         for server in self.servers.values():
-            server.close()
-        if getattr(self, "netft", None) is not None:
-            self.netft.close()
+            if gauge_sim is None or server not in gauge_sim.servers.values():
+                server.close()
+        if gauge_sim is not None:
+            gauge_sim.close()
 
     def __enter__(self) -> "SimulatedRig":
         return self
 
     def __exit__(self, *exc) -> None:
         self.close()
+
+
+def toml_value(value) -> str:
+    """A TOML literal for a config value a simulator hands over (str, bool, int, float)."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, str):
+        return '"' + value.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    return repr(value)

@@ -17,10 +17,10 @@ class ScriptedDevice(RequestReplyDevice):
 
     def feed(self, data: bytes, now_s: float) -> list[bytes]:
         self._buf += data
-        out = []
+        out: list[bytes] = []
         while self.exchanges and len(self._buf) >= len(self.exchanges[0][0]):
             expected, reply = self.exchanges.pop(0)
-            got, self._buf = self._buf[: len(expected)], self._buf[len(expected):]
+            got, self._buf = self._buf[: len(expected)], self._buf[len(expected) :]
             if got != expected:
                 self.errors.append(f"expected {expected.hex(' ')}, got {got.hex(' ')}")
                 return out

@@ -10,9 +10,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from objects.pose import Pose
 from rig.clock import Clock
 from rig.sim.contact import ContactModel
-from objects.pose import Pose
 from rig.sim.stage import SimStage, StageSpec
 
 AXES = ("x", "y", "z", "theta")
@@ -28,20 +28,24 @@ class AxisGeometry:
 
 @dataclass
 class WorldSpec:
-    stages: dict[str, StageSpec] = field(default_factory=lambda: {
-        # x, y: 25 mm stages homing at one end; contact point mid-travel.
-        "x": StageSpec(travel=(0.0, 25.0), max_speed=5.0, accel=20.0),
-        "y": StageSpec(travel=(0.0, 25.0), max_speed=5.0, accel=20.0),
-        # z homes at the top and moves down; the gel surface is 20 mm below home.
-        "z": StageSpec(travel=(0.0, 25.0), max_speed=5.0, accel=20.0),
-        "theta": StageSpec(travel=(0.0, 360.0), max_speed=30.0, accel=120.0),
-    })
-    geometry: dict[str, AxisGeometry] = field(default_factory=lambda: {
-        "x": AxisGeometry(origin=12.5),
-        "y": AxisGeometry(origin=12.5),
-        "z": AxisGeometry(origin=20.0, sign=-1.0),
-        "theta": AxisGeometry(origin=180.0),
-    })
+    stages: dict[str, StageSpec] = field(
+        default_factory=lambda: {
+            # x, y: 25 mm stages homing at one end; contact point mid-travel.
+            "x": StageSpec(travel=(0.0, 25.0), max_speed=5.0, accel=20.0),
+            "y": StageSpec(travel=(0.0, 25.0), max_speed=5.0, accel=20.0),
+            # z homes at the top and moves down; the gel surface is 20 mm below home.
+            "z": StageSpec(travel=(0.0, 25.0), max_speed=5.0, accel=20.0),
+            "theta": StageSpec(travel=(0.0, 360.0), max_speed=30.0, accel=120.0),
+        }
+    )
+    geometry: dict[str, AxisGeometry] = field(
+        default_factory=lambda: {
+            "x": AxisGeometry(origin=12.5),
+            "y": AxisGeometry(origin=12.5),
+            "z": AxisGeometry(origin=20.0, sign=-1.0),
+            "theta": AxisGeometry(origin=180.0),
+        }
+    )
     # Start above the contact point, 5 mm clear of the gel, already homed.
     start: dict[str, float] = field(default_factory=lambda: {"x": 12.5, "y": 12.5, "z": 15.0, "theta": 180.0})
     gauge_offset: tuple[float, ...] = (0.12, -0.08, 0.35, 4.0, -3.0, 1.5)  # unloaded bias, N / N·mm
@@ -49,8 +53,7 @@ class WorldSpec:
 
 
 class SimWorld:
-    def __init__(self, clock: Clock, spec: WorldSpec | None = None, contact: ContactModel | None = None,
-                 seed: int = 0):
+    def __init__(self, clock: Clock, spec: WorldSpec | None = None, contact: ContactModel | None = None, seed: int = 0):
         self.clock = clock
         self.spec = spec or WorldSpec()
         if contact is None:
@@ -59,10 +62,7 @@ class SimWorld:
             contact = ElastomerContact("sphere10mm")
         self.contact = contact
         self._last_true: tuple[float, np.ndarray] | None = None
-        self.stages = {
-            name: SimStage(name, self.spec.stages[name], position=self.spec.start[name])
-            for name in AXES
-        }
+        self.stages = {name: SimStage(name, self.spec.stages[name], position=self.spec.start[name]) for name in AXES}
         self._rng = np.random.default_rng(seed)
 
     def pose(self, t_s: float | None = None) -> Pose:

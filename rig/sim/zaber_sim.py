@@ -24,8 +24,7 @@ X_LSM025A_DEVICE_ID = 50030
 ACCEL_UNITS_PER_USTEP_S2 = 1.6384 / 10000
 # Settings that belong to the device, not to an axis: asking them of axis 1 is
 # rejected DEVICEONLY (manual, "Reply Format", rejection reasons).
-DEVICE_SETTINGS = ("deviceid", "system.serial", "version", "version.build", "comm.packet.size.max",
-                   "system.axiscount")
+DEVICE_SETTINGS = ("deviceid", "system.serial", "version", "version.build", "comm.packet.size.max", "system.axiscount")
 
 
 @dataclass
@@ -87,8 +86,7 @@ class ZaberChainSim(RequestReplyDevice):
             targets = self.devices
         else:
             targets = {device: self.devices[device]} if device in self.devices else {}
-        return [self._reply(number, dev, axis, msg_id, words, now_s, with_checksum)
-                for number, dev in targets.items()]
+        return [self._reply(number, dev, axis, msg_id, words, now_s, with_checksum) for number, dev in targets.items()]
 
     def _flags(self, dev: ZaberDeviceSim) -> list[str]:
         flags = []
@@ -98,8 +96,9 @@ class ZaberChainSim(RequestReplyDevice):
             flags.append("WR")
         return flags
 
-    def _reply(self, number: int, dev: ZaberDeviceSim, axis: int, msg_id, words: list[str], now_s: float,
-               with_checksum: bool) -> bytes:
+    def _reply(
+        self, number: int, dev: ZaberDeviceSim, axis: int, msg_id, words: list[str], now_s: float, with_checksum: bool
+    ) -> bytes:
         with dev.stage.lock:
             ok, data = self._execute(dev, axis, words, now_s)
             status = "BUSY" if dev.stage.busy(now_s) else "IDLE"
@@ -148,10 +147,18 @@ class ZaberChainSim(RequestReplyDevice):
             return False, "DEVICEONLY"
         lo, hi = self._limits(dev)
         values = {
-            "deviceid": dev.device_id, "system.serial": dev.serial, "version": dev.version,
-            "version.build": dev.build, "comm.packet.size.max": dev.packet_size_max, "system.axiscount": 1,
-            "resolution": dev.resolution, "pos": dev.to_native(dev.stage.position(now_s)),
-            "maxspeed": dev.maxspeed, "accel": dev.accel, "limit.min": lo, "limit.max": hi,
+            "deviceid": dev.device_id,
+            "system.serial": dev.serial,
+            "version": dev.version,
+            "version.build": dev.build,
+            "comm.packet.size.max": dev.packet_size_max,
+            "system.axiscount": 1,
+            "resolution": dev.resolution,
+            "pos": dev.to_native(dev.stage.position(now_s)),
+            "maxspeed": dev.maxspeed,
+            "accel": dev.accel,
+            "limit.min": lo,
+            "limit.max": hi,
         }
         if name not in values:
             # Also what an integrated device answers for peripheralid / peripheral.id

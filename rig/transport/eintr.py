@@ -3,7 +3,7 @@
 Python retries most blocking calls itself (PEP 475: read, write, select, sockets),
 but not ``termios.tcdrain``, which pyserial's ``flush`` calls: a signal arriving
 while bytes drain (a profiler attaching, a timer, any handled signal) made it raise
-``termios.error(4, 'Interrupted system call')`` and abort a run (issue 12, finding 9).
+``termios.error(4, 'Interrupted system call')`` and abort a run.
 
 Only the EINTR error is retried. An exception that a Python signal handler raises
 (the motion context turns SIGINT, SIGTERM and SIGHUP into one) is not an OSError

@@ -4,7 +4,7 @@ Framed here (``modbus_frames``) rather than through pymodbus, so that every repl
 checked against its own request before a value is used, and the wait for it follows
 the port's clock (``serial_link``). pymodbus 3.16 checks the CRC and the device id,
 but takes any other sound frame as the answer (a late reply to the previous request
-became a position or an alarm: issue 12, finding 5), and waits in real time only.
+could become a position or an alarm), and waits in real time only.
 
 Before each request stale input is discarded. A reply with a bad CRC, or none within
 the timeout, is retried ``retries`` times; a sound frame answering another request
@@ -84,11 +84,13 @@ class ModbusBus:
                     return self._await_reply(request, what, device)
                 except mf.ExceptionReply as exc:
                     name = EXCEPTION_NAMES.get(exc.code, f"exception {exc.code}")
-                    raise DeviceRejected(device, what, f"exception response, code {exc.code}",
-                                         f"Modbus exception {exc.code} ({name})") from None
+                    raise DeviceRejected(
+                        device, what, f"exception response, code {exc.code}", f"Modbus exception {exc.code} ({name})"
+                    ) from None
                 except (DeviceTimeout, FramingError) as exc:
                     self.failed_tries += 1
                     last = exc
+        assert last is not None  # the loop ran at least once (retries >= 0) and every try failed
         raise last
 
     def _await_reply(self, request: bytes, what: str, device: str) -> list[int] | None:
@@ -106,11 +108,19 @@ class ModbusBus:
 
     def read_holding(self, device_id: int, address: int, count: int, *, device: str) -> list[int]:
         what = f"read holding {address:#06x} x{count} @id {device_id}"
-        return self._exchange(mf.read_request(device_id, mf.READ_HOLDING, address, count), what, device)
+        request = mf.read_request(device_id, mf.READ_HOLDING, address, count)
+        return self._registers(self._exchange(request, what, device))
 
     def read_input(self, device_id: int, address: int, count: int, *, device: str) -> list[int]:
         what = f"read input {address:#06x} x{count} @id {device_id}"
-        return self._exchange(mf.read_request(device_id, mf.READ_INPUT, address, count), what, device)
+        request = mf.read_request(device_id, mf.READ_INPUT, address, count)
+        return self._registers(self._exchange(request, what, device))
+
+    @staticmethod
+    def _registers(values: list[int] | None) -> list[int]:
+        # parse_reply returns None only for writes, and a read request's reply was checked to be a read's.
+        assert values is not None
+        return values
 
     def write_register(self, device_id: int, address: int, value: int, *, device: str) -> None:
         what = f"write {address:#06x}={value:#06x} @id {device_id}"

@@ -86,7 +86,7 @@ def parse_reply(request: bytes, reply: bytes) -> list[int] | None:
         count = struct.unpack(">H", request[4:6])[0]
         if reply[2] != 2 * count:
             raise OtherReply(f"{reply[2]} data bytes instead of {2 * count}")
-        return list(struct.unpack(f">{count}H", reply[3:3 + 2 * count]))
+        return list(struct.unpack(f">{count}H", reply[3 : 3 + 2 * count]))
     if function == WRITE_SINGLE and reply[2:6] != request[2:6]:
         raise OtherReply(f"echo of register/value {reply[2:6].hex(' ')} instead of {request[2:6].hex(' ')}")
     if function == WRITE_MULTIPLE and reply[2:6] != request[2:6]:

@@ -2,7 +2,7 @@
 
 A simulated device answers in zero simulated time, but its thread may be starved of
 CPU for a while on a loaded machine. A real-time reply timeout then aborted simulated
-runs (issue 12, finding 7). A simulator registers its port URL here; a transport that
+runs. A simulator registers its port URL here; a transport that
 opens that URL asks the simulator, instead of a wall clock, whether a reply is still
 coming: a reply is late only when the simulator has taken the request and has nothing
 due within the timeout of *simulated* time. A simulator that does not take a request

@@ -80,7 +80,13 @@ class TrackedPort:
 def open_port(url: str, *, baudrate: int, timeout_s: float, device: str) -> TrackedPort:
     """Open ``url`` with pyserial (8N1). Raises DeviceDisconnected naming the device and port."""
     try:
-        return TrackedPort(serial.serial_for_url(url, baudrate=baudrate, timeout=timeout_s, write_timeout=timeout_s))
+        # A simulator in this process drains its port from a thread that a loaded machine may
+        # starve: its write deadline is the real-time stall limit, like its replies'.
+        peer = peers.lookup(url)
+        write_timeout_s = max(timeout_s, peer.stall_limit_s) if peer is not None else timeout_s
+        return TrackedPort(
+            serial.serial_for_url(url, baudrate=baudrate, timeout=timeout_s, write_timeout=write_timeout_s)
+        )
     except (*PORT_ERRORS, ValueError) as exc:
         raise DeviceDisconnected(device, f"open {url}", None, f"cannot open port {url}: {exc}") from exc
 
@@ -113,7 +119,10 @@ class _PeerWait:
         if outlook is peers.Outlook.SILENT:
             return f"no reply within {link.timeout_s:g} s (simulated time)"
         if _REAL.now() - self.started > peer.stall_limit_s:
-            return f"no reply within {link.timeout_s:g} s: the simulator did not answer in {peer.stall_limit_s:g} s of real time"
+            return (
+                f"no reply within {link.timeout_s:g} s: the simulator did not answer "
+                f"in {peer.stall_limit_s:g} s of real time"
+            )
         return None
 
 
@@ -155,8 +164,7 @@ class SerialLink:
         except PORT_ERRORS as exc:
             raise self._fail("read from", command, exc, device) from exc
 
-    def read_frame(self, frame_end: Callable[[bytes], int | None], command: str, *,
-                   device: str | None = None) -> bytes:
+    def read_frame(self, frame_end: Callable[[bytes], int | None], command: str, *, device: str | None = None) -> bytes:
         """Read until ``frame_end(buffer)`` gives the length of the frame at its start;
         return that frame. DeviceTimeout (with what did arrive) when the reply is late."""
         peer = peers.lookup(self.url)

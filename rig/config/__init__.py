@@ -2,25 +2,45 @@
 
 Every error names the file, the key (``axes.z.travel``) and what was allowed.
 Positions are in the axis unit (mm or deg); ``position = native * scale + offset``.
+The device kinds, their own keys and default wire settings come from the registry
+(``rig/config/registry.py``); this module reads the keys every device of a role has.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Mapping
 
 from common.errors import ConfigError
 from common.table import Table, toml_table
+from rig.config.registry import (  # noqa: F401
+    MAX_BAUDRATE,
+    MAX_PULSES_PER_REV,
+    MAX_TIMEOUT_S,
+    TRAVEL_LIMIT,
+    DeviceKind,
+    Key,
+    kind,
+    kinds,
+)
 
 AXIS_NAMES = ("x", "y", "z", "theta")
-AXIS_DRIVERS = ("zaber", "pr_drive")
-GAUGE_DRIVERS = ("ft300", "m8128", "ati_netft")
-CAMERA_DRIVERS = ("v4l2", "folder", "video", "sim")
+
+
+class KindKeys:
+    """A device config whose kind-specific keys (``options``, from its registry row) read
+    as attributes too: ``cfg.device_id`` on an FT300, ``cfg.scale`` on a Zaber axis."""
+
+    def __getattr__(self, name: str) -> Any:
+        options = self.__dict__.get("options") or {}
+        if name in options:
+            return options[name]
+        raise AttributeError(f"{type(self).__name__} (driver {self.__dict__.get('driver')!r}) has no key {name!r}")
 
 
 @dataclass(frozen=True)
-class AxisConfig:
+class AxisConfig(KindKeys):
     name: str
     driver: str
     port: str
@@ -31,35 +51,30 @@ class AxisConfig:
     max_speed: float  # unit/s
     jog_speed: float  # unit/s, default for jogs
     offset: float = 0.0  # unit at native zero
-    scale: float | None = None  # zaber: unit per microstep (negative flips direction)
-    axis_number: int = 1  # zaber: axis of a multi-axis controller
-    pulses_per_rev: int | None = None  # pr_drive
-    travel_per_rev: float | None = None  # pr_drive: unit per motor revolution
     timeout_s: float = 0.5
     retries: int = 2
     requires_home: bool = True
+    # the kind's own keys (registry row): zaber scale, axis_number; pr_drive pulses_per_rev, travel_per_rev
+    options: Mapping[str, Any] = field(default_factory=dict, hash=False)
 
 
 @dataclass(frozen=True)
-class GaugeConfig:
+class GaugeConfig(KindKeys):
     driver: str
-    port: str
-    baudrate: int
-    device_id: int = 9  # ft300 Modbus id
+    port: str  # a serial port URL, or a host address for network gauges
+    baudrate: int | None  # None: not a serial gauge (registry row's wire.baudrate)
     mode: str = "stream"  # stream | poll
-    rate_hz: int = 100  # m8128 sampling rate
     timeout_s: float = 0.5
     retries: int = 2
     fresh_after_s: float = 0.05  # bound on the stream's measurement-to-arrival latency, s
-    rdt_port: int = 49152  # ati_netft: UDP port of RDT (``port`` is the box's host address)
-    http_port: int = 80  # ati_netft: where netftapi2.xml (counts per unit) is served
-    rdt_mode: str = "realtime"  # ati_netft: realtime | buffered RDT streaming
+    # the kind's own keys (registry row): ft300 device_id; m8128 rate_hz; ati_netft rdt_port, http_port, rdt_mode
+    options: Mapping[str, Any] = field(default_factory=dict, hash=False)
 
 
 @dataclass(frozen=True)
-class CameraConfig:
+class CameraConfig(KindKeys):
     driver: str
-    device: str  # /dev/video0, a folder of images, a video file; ignored for sim
+    device: str  # /dev/video0, a folder of images, a video file; "" for sim
     width: int = 640
     height: int = 480
     fps: float = 25.0
@@ -67,6 +82,7 @@ class CameraConfig:
     white_balance_K: float | None = None
     discard_frames: int = 5
     mm_per_px: float | None = None  # calibration of the frames, stored in every run file
+    options: Mapping[str, Any] = field(default_factory=dict, hash=False)  # the kind's own keys besides device
 
 
 @dataclass(frozen=True)
@@ -96,23 +112,49 @@ class RigConfig:
 
 # Physical bounds of a rig config. Each is far outside any sane setting but close enough
 # that a typo (or NaN/inf, refused by finite_number) cannot disarm a limit or overflow a
-# conversion to native units.
-TRAVEL_LIMIT = 1e4  # mm or deg: 10 m of linear travel, or ~28 turns; no lab stage goes further
-MAX_SPEED = 1000.0  # mm/s or deg/s: an order of magnitude above motorised lab stages (the simulated ones do 5 mm/s, 30 deg/s)
-MAX_TIMEOUT_S = 60.0  # a device that needs longer than a minute to answer is not answering
+# conversion to native units. TRAVEL_LIMIT, MAX_TIMEOUT_S, MAX_BAUDRATE and
+# MAX_PULSES_PER_REV live in the registry, whose rows use them.
+MAX_SPEED = (
+    1000.0  # mm/s or deg/s: an order of magnitude above motorised lab stages (the simulated ones do 5 mm/s, 30 deg/s)
+)
 # The FT300 reports forces as int16 / 100 N and torques as int16 / 1000 N·m (its manual, as
 # rig/drivers/ft300.py decodes them), so it saturates at ±327.67 N and ±32 767 N·mm; its rated
-# range is ±300 N and ±30 N·m. A limit above the gauge's full scale can never trip (issue 12 saw
-# a NaN limit let z press on with the gauge pinned at 327 N); a tactile gel is ruined far below.
+# range is ±300 N and ±30 N·m. A limit above the gauge's full scale can never trip (a NaN limit
+# once let z press on with the gauge pinned at 327 N); a tactile gel is ruined far below.
 MAX_FORCE_LIMIT_N = 300.0
 MAX_TORQUE_LIMIT_NMM = 30000.0
-MAX_BAUDRATE = 12_000_000  # the fastest USB-serial bridges (FTDI FT232H) top out at 12 Mbaud
-MAX_PULSES_PER_REV = 0xFFFF  # the drive holds pulses/rev in one 16-bit register (rig/drivers/pr_registers.py)
+
+
+def _driver(t: Table, role: str) -> DeviceKind:
+    return kind(role, t.get("driver", str, choices=kinds(role)), path=t.path, key=t.key("driver"))
+
+
+def _kind_keys(t: Table, keys: tuple[Key, ...]) -> dict[str, Any]:
+    """The values of a registry row's own keys, each checked like every other key."""
+    values = {}
+    for k in keys:
+        value = t.get(k.name, k.kind, k.default, choices=k.choices, low=k.low, high=k.high, positive=k.positive)
+        if k.min_abs is not None and value is not None and abs(value) < k.min_abs:
+            why = f" ({k.doc})" if k.doc else ""
+            raise t.error(k.name, f"must be non-zero, {k.min_abs:g} <= |{k.name}|{why}, got {value!r}")
+        values[k.name] = value
+    return values
+
+
+def _wire(t: Table, row: DeviceKind) -> dict[str, Any]:
+    """baudrate (serial kinds only), timeout_s and retries, defaulting to the row's wire settings."""
+    wire = dict(
+        timeout_s=t.get("timeout_s", float, row.wire.timeout_s, positive=True, high=MAX_TIMEOUT_S),
+        retries=t.get("retries", int, row.wire.retries, low=0, high=10),
+    )
+    if row.wire.baudrate is not None:
+        wire["baudrate"] = t.get("baudrate", int, row.wire.baudrate, positive=True, high=MAX_BAUDRATE)
+    return wire
 
 
 def _axis(path: str, name: str, data: Any) -> AxisConfig:
     t = Table(path, f"axes.{name}", data)
-    driver = t.get("driver", str, choices=AXIS_DRIVERS)
+    row = _driver(t, "axis")
     unit = t.get("unit", str, "deg" if name == "theta" else "mm", choices=("mm", "deg"))
     travel = t.vector("travel", 2, low=-TRAVEL_LIMIT, high=TRAVEL_LIMIT)
     if travel[0] >= travel[1]:
@@ -121,51 +163,36 @@ def _axis(path: str, name: str, data: Any) -> AxisConfig:
     jog_speed = t.get("jog_speed", float, min(1.0, max_speed), positive=True)
     if jog_speed > max_speed:
         raise t.error("jog_speed", f"must not exceed max_speed ({max_speed}), got {jog_speed}")
-    cfg = dict(
-        name=name, driver=driver, unit=unit, travel=travel, max_speed=max_speed, jog_speed=jog_speed,
+    cfg = AxisConfig(
+        name=name,
+        driver=row.name,
+        unit=unit,
+        travel=(travel[0], travel[1]),
+        max_speed=max_speed,
+        jog_speed=jog_speed,
         port=t.get("port", str),
-        baudrate=t.get("baudrate", int, 115200 if driver == "zaber" else 38400, positive=True, high=MAX_BAUDRATE),
         device=t.get("device", int, 1, low=0, high=247),
         offset=t.get("offset", float, 0.0, low=-10 * TRAVEL_LIMIT, high=10 * TRAVEL_LIMIT),
-        timeout_s=t.get("timeout_s", float, 0.5, positive=True, high=MAX_TIMEOUT_S),
-        retries=t.get("retries", int, 2, low=0, high=10),
         requires_home=t.get("requires_home", bool, True),
+        options=_kind_keys(t, row.keys),
+        **_wire(t, row),
     )
-    if driver == "zaber":
-        # unit per microstep: 1e-9 mm is far below any microstep (positions become int
-        # microsteps, so a tinier scale overflows them); more than 1000 per step is no stage
-        scale = t.get("scale", float, low=-1e3, high=1e3)
-        if abs(scale) < 1e-9:
-            raise t.error("scale", f"must be non-zero, 1e-9 <= |scale| (unit per microstep; negative flips the "
-                                   f"direction), got {scale!r}")
-        cfg.update(scale=scale, axis_number=t.get("axis_number", int, 1, low=1, high=9))
-    else:
-        cfg.update(pulses_per_rev=t.get("pulses_per_rev", int, positive=True, high=MAX_PULSES_PER_REV))
-        per_rev = t.get("travel_per_rev", float, low=-TRAVEL_LIMIT, high=TRAVEL_LIMIT)
-        if abs(per_rev) < 1e-6:  # below 1 nm (or µdeg) per motor turn no gearbox exists
-            raise t.error("travel_per_rev", f"must be non-zero, 1e-6 <= |travel_per_rev| (unit per motor revolution), "
-                                            f"got {per_rev!r}")
-        cfg.update(travel_per_rev=per_rev)
     t.done()
-    return AxisConfig(**cfg)
+    return cfg
 
 
 def _gauge(path: str, data: Any) -> GaugeConfig:
     t = Table(path, "gauge", data)
-    driver = t.get("driver", str, choices=GAUGE_DRIVERS)
+    row = _driver(t, "gauge")
+    wire = _wire(t, row)
     cfg = GaugeConfig(
-        driver=driver,
+        driver=row.name,
         port=t.get("port", str),
-        baudrate=t.get("baudrate", int, {"ft300": 19200}.get(driver, 115200), positive=True, high=MAX_BAUDRATE),
-        device_id=t.get("device_id", int, 9, low=1, high=247),
+        baudrate=wire.pop("baudrate", None),
         mode=t.get("mode", str, "stream", choices=("stream", "poll")),
-        rate_hz=t.get("rate_hz", int, 100, low=1, high=2000),
-        timeout_s=t.get("timeout_s", float, 0.5, positive=True, high=MAX_TIMEOUT_S),
-        retries=t.get("retries", int, 2, low=0, high=10),
         fresh_after_s=t.get("fresh_after_s", float, 0.05, low=0.0, high=3600.0),
-        rdt_port=t.get("rdt_port", int, 49152, low=1, high=65535),
-        http_port=t.get("http_port", int, 80, low=1, high=65535),
-        rdt_mode=t.get("rdt_mode", str, "realtime", choices=("realtime", "buffered")),
+        options=_kind_keys(t, row.keys),
+        **wire,
     )
     t.done()
     return cfg
@@ -173,10 +200,11 @@ def _gauge(path: str, data: Any) -> GaugeConfig:
 
 def _camera(path: str, data: Any) -> CameraConfig:
     t = Table(path, "camera", data)
-    driver = t.get("driver", str, choices=CAMERA_DRIVERS)
+    row = _driver(t, "camera")
+    options = _kind_keys(t, row.keys)
     cfg = CameraConfig(
-        driver=driver,
-        device=t.get("device", str, "" if driver == "sim" else ...),
+        driver=row.name,
+        device=options.pop("device", ""),
         width=t.get("width", int, 640, low=16, high=8192),
         height=t.get("height", int, 480, low=16, high=8192),
         fps=t.get("fps", float, 25.0, positive=True, high=1000.0),  # above any UVC camera
@@ -184,16 +212,21 @@ def _camera(path: str, data: Any) -> CameraConfig:
         white_balance_K=t.get("white_balance_K", float, None, low=1000.0, high=15000.0),
         discard_frames=t.get("discard_frames", int, 5, low=0, high=1000),
         mm_per_px=t.get("mm_per_px", float, None, low=1e-4, high=10.0),
+        options=options,
     )
     t.done()
     return cfg
 
 
+def _three(v: tuple[float, ...]) -> tuple[float, float, float]:
+    return v[0], v[1], v[2]  # Table.vector checked the length
+
+
 def _safety(path: str, data: Any) -> SafetyConfig:
     t = Table(path, "safety", data)
     cfg = SafetyConfig(
-        max_force_N=t.vector("max_force_N", 3, positive=True, high=MAX_FORCE_LIMIT_N),
-        max_torque_Nmm=t.vector("max_torque_Nmm", 3, positive=True, high=MAX_TORQUE_LIMIT_NMM),
+        max_force_N=_three(t.vector("max_force_N", 3, positive=True, high=MAX_FORCE_LIMIT_N)),
+        max_torque_Nmm=_three(t.vector("max_torque_Nmm", 3, positive=True, high=MAX_TORQUE_LIMIT_NMM)),
         poll_s=t.get("poll_s", float, 0.02, low=0.001, high=1.0),
     )
     t.done()
@@ -228,8 +261,12 @@ def parse_config(text: str, path: str = "<string>") -> RigConfig:
     pendant = _pendant(path, top.get("pendant", dict)) if "pendant" in data else None
     top.done()
     if axes and safety is None:
-        raise ConfigError(path, "safety", "is required when axes are configured: no stage moves without force limits "
-                                          "(max_force_N = [Fx, Fy, Fz], max_torque_Nmm = [Mx, My, Mz])")
+        raise ConfigError(
+            path,
+            "safety",
+            "is required when axes are configured: no stage moves without force limits "
+            "(max_force_N = [Fx, Fy, Fz], max_torque_Nmm = [Mx, My, Mz])",
+        )
     if axes and gauge is None:
         raise ConfigError(path, "gauge", "is required when axes are configured: force limits need a force gauge")
     _check_ports(path, axes, gauge)
@@ -241,14 +278,26 @@ def _check_ports(path: str, axes: dict[str, AxisConfig], gauge: GaugeConfig | No
     for a in axes.values():
         other = by_port.setdefault(a.port, a)
         if other is not a and (other.driver, other.baudrate) != (a.driver, a.baudrate):
-            raise ConfigError(path, f"axes.{a.name}.port",
-                              f"{a.port} is shared with axis {other.name} ({other.driver} @ {other.baudrate} baud) "
-                              f"but this axis is {a.driver} @ {a.baudrate} baud")
-        if other is not a and a.device == other.device and a.axis_number == other.axis_number:
-            raise ConfigError(path, f"axes.{a.name}.device", f"device {a.device} on {a.port} is already axis {other.name}")
+            raise ConfigError(
+                path,
+                f"axes.{a.name}.port",
+                f"{a.port} is shared with axis {other.name} ({other.driver} @ {other.baudrate} baud) "
+                f"but this axis is {a.driver} @ {a.baudrate} baud",
+            )
+        if other is not a and (a.device, a.options.get("axis_number")) == (
+            other.device,
+            other.options.get("axis_number"),
+        ):
+            raise ConfigError(
+                path, f"axes.{a.name}.device", f"device {a.device} on {a.port} is already axis {other.name}"
+            )
     if gauge is not None and gauge.port in by_port:
-        raise ConfigError(path, "gauge.port", f"{gauge.port} is also used by axis {by_port[gauge.port].name}; "
-                                              "the gauge needs its own port (its stream mode owns the line)")
+        raise ConfigError(
+            path,
+            "gauge.port",
+            f"{gauge.port} is also used by axis {by_port[gauge.port].name}; "
+            "the gauge needs its own port (its stream mode owns the line)",
+        )
 
 
 def load_config(path: str | Path) -> RigConfig:

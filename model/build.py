@@ -1,0 +1,57 @@
+"""A training run's pieces, built in one place from the two configs: the network (through the
+registry), the diffusion, the training data, the callbacks, and the Trainer that joins them."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Callable
+
+import torch
+
+from dataset.torch_dataset import TactileDataset
+from model.callbacks import Checkpoints, Progress, ValidationSamples
+from model.config import ModelConfig
+from model.diffusion import Diffusion
+from model.registry import build_network
+from model.trainer import Callback, TrainConfig, Trainer
+
+
+def build(
+    model_cfg: ModelConfig,
+    train_cfg: TrainConfig,
+    split_dir: str | Path,
+    out_dir: str | Path,
+    *,
+    device: str | None = None,
+    log: Callable[[str], None] = print,
+) -> Trainer:
+    """A Trainer on the split's train part writing to ``out_dir`` (checkpoint/, samples/), logging
+    through ``log`` on the main process. Raises ValueError for a split with less than one batch."""
+    data = TactileDataset(split_dir, "train", size=model_cfg.image_size)
+    if len(data) < train_cfg.batch_size:
+        raise ValueError(f"{split_dir}: {len(data)} training frames, fewer than one batch of {train_cfg.batch_size}")
+    torch.manual_seed(train_cfg.seed)  # initial weights: the same in every process
+    net = build_network(model_cfg)
+    meta = {  # what inference needs to condition like training did
+        "wrench_mean": data.manifest["wrench_mean"],
+        "wrench_std": data.manifest["wrench_std"],
+        "mm_per_px": data.mm_per_px[0],
+        # the frame width that mm_per_px belongs to: an object image spans frame_px × mm_per_px mm
+        "frame_px": int(data.manifest["runs"][0]["frame_shape"][1]),
+    }
+    callbacks: list[Callback] = [Progress(log)]
+    if train_cfg.sample_every:
+        callbacks.append(
+            ValidationSamples(
+                split_dir,
+                out_dir,
+                model_cfg.image_size,
+                every=train_cfg.sample_every,
+                count=train_cfg.samples,
+                steps=train_cfg.sample_steps,
+                seed=train_cfg.seed,
+                log=log,
+            )
+        )
+    callbacks.append(Checkpoints(out_dir, model_cfg, meta, every=train_cfg.checkpoint_every))
+    return Trainer(train_cfg, net, Diffusion(model_cfg), data, callbacks, device=device)
