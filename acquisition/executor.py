@@ -232,11 +232,12 @@ class Acquisition:
                 self._stream_start(writer)
                 reference = self._capture_frame(self.clock.now()).image
                 if writer is None:
-                    from objects.indenters import get_indenter
+                    from objects.object_file import load_object, object_file_of
 
                     info = dict(header or {})
                     mm_per_px = float(info.get("mm_per_px", float("nan")))
-                    obj = get_indenter(proto.object)
+                    obj = load_object(proto.object)  # an object file's image is its photo at the frame's scale
+                    source = object_file_of(obj)
                     object_image = obj.object_image(
                         reference.shape[1], mm_per_px if math.isfinite(mm_per_px) else 14.0 / reference.shape[1]
                     )
@@ -246,7 +247,7 @@ class Acquisition:
                             protocol_name=proto.name,
                             protocol_toml=proto.text,
                             rig_config=info.get("rig_config", ""),
-                            object_name=proto.object,
+                            object_name=obj.name,
                             object_geometry=obj.description,
                             sensor_kind=proto.sensor,
                             mm_per_px=mm_per_px,
@@ -254,6 +255,9 @@ class Acquisition:
                             frames_planned=plan.frame_count,
                             contact_origin=(self.origin["x"], self.origin["y"], self.origin["z"], self.origin["theta"]),
                             phases=PHASES,
+                            sensor_profile=str(info.get("sensor_profile", "")),
+                            object_file_toml=source.text if source else "",
+                            object_photo_sha256=source.photo_sha256 if source else "",
                         ),
                         reference.shape,
                         object_image,

@@ -79,6 +79,9 @@ class RunHeader:
     frames_planned: int
     contact_origin: tuple[float, float, float, float]
     phases: tuple[str, ...]
+    sensor_profile: str = ""  # SensorProfile.record() of a simulated run; "" writes no attribute
+    object_file_toml: str = ""  # a user object file's text; "" (a library object) writes no attribute
+    object_photo_sha256: str = ""  # sha256 of that object's photo
 
 
 # (name, shape per frame, dtype, units), from the schema's field table
@@ -105,6 +108,11 @@ def _write_header(f: h5py.File, header: RunHeader, frame_shape, object_image, re
     a[S.ATTR_FRAMES_PLANNED] = header.frames_planned
     a[S.ATTR_CONTACT_ORIGIN] = np.asarray(header.contact_origin, dtype=float)
     a[S.ATTR_PHASES] = list(header.phases)
+    if header.sensor_profile:  # attributes cannot be added once in SWMR mode: now or never
+        a[S.ATTR_SENSOR_PROFILE] = header.sensor_profile
+    if header.object_file_toml:
+        a[S.ATTR_OBJECT_FILE] = header.object_file_toml
+        a[S.ATTR_OBJECT_PHOTO_SHA256] = header.object_photo_sha256
     h, w, c = frame_shape
     frames = f.create_dataset(
         S.FRAMES,

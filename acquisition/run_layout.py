@@ -67,10 +67,12 @@ def _describe(value: np.ndarray) -> str:
 def attr_problems(f: h5py.File) -> dict[str, str]:
     """{attribute name: what is wrong} for the root attributes of the table."""
     problems: dict[str, str] = {}
-    for name, kind in S.ATTRS:
+    optional = {name for name, _ in S.OPTIONAL_ATTRS}
+    for name, kind in (*S.ATTRS, *S.OPTIONAL_ATTRS):
         try:
             if name not in f.attrs:
-                problems[name] = "missing"
+                if name not in optional:  # files written before an optional attribute existed lack it
+                    problems[name] = "missing"
                 continue
             value = np.asarray(f.attrs[name])
         except (OSError, RuntimeError, KeyError, ValueError) as exc:

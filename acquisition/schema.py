@@ -47,6 +47,9 @@ ATTR_CAPTURE_HZ = "capture_hz"
 ATTR_FRAMES_PLANNED = "frames_planned"
 ATTR_CONTACT_ORIGIN = "contact_origin"  # stage positions of the contact point (x, y, z, theta)
 ATTR_PHASES = "phases"
+ATTR_SENSOR_PROFILE = "sensor_profile"  # simulated runs: the sensor profile's name, sha256 and file (TOML text)
+ATTR_OBJECT_FILE = "object_file_toml"  # a user object file's text (docs/protocols.md, "Your own objects")
+ATTR_OBJECT_PHOTO_SHA256 = "object_photo_sha256"  # sha256 of that object's photo file: the condition's source
 
 SCHEMA_VERSION = 1
 STATUS_LEN = 16
@@ -146,6 +149,9 @@ ATTRS = (
     (ATTR_CONTACT_ORIGIN, "float[4]"),
     (ATTR_PHASES, "str[]"),
 )
+# Root attributes a file may lack (written only by some runs, or added after older files);
+# readers treat a missing one as "not recorded" (model/baseline.py: the default profile).
+OPTIONAL_ATTRS = ((ATTR_SENSOR_PROFILE, "str"), (ATTR_OBJECT_FILE, "str"), (ATTR_OBJECT_PHOTO_SHA256, "str"))
 
 # The frames' lossless codec, chosen by bench/storage_bench.py (docs/benchmarks.md):
 # Blosc with Zstandard level 1 on bit planes. Neighbouring pixels share their high

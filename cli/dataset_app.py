@@ -19,6 +19,8 @@ app = typer.Typer(
     add_completion=False,
 )
 
+OFFSET_WARN = 0.1  # of the frame's width: a condition farther from the contact than this is a wrong pose or scale
+
 Paths = Annotated[list[Path], typer.Argument(help="Run files (HDF5) written by `rig run-protocol`.")]
 
 
@@ -40,6 +42,7 @@ def friendly(fn):
 @friendly
 def info(paths: Paths):
     """Frames, object, sensor kind, wrench ranges, status and duration of each run (also while it grows)."""
+    from dataset.pose_convention import DESCRIPTION as POSE_DESCRIPTION
     from dataset.runs import summarize
     from rig.types import WRENCH_COMPONENTS, WRENCH_UNITS
 
@@ -50,6 +53,9 @@ def info(paths: Paths):
             f"{s.status}{' (' + s.reason + ')' if s.reason else ''}; protocol {s.protocol}, object {s.object_name}, "
             f"sensor {s.sensor_kind}, {s.duration_s:.0f} s, {s.mm_per_px:.4f} mm/px"
         )
+        typer.echo(f"  pose: {POSE_DESCRIPTION}")
+        if s.imported:
+            typer.echo(f"  imported from {s.imported}")
         typer.echo(
             "  wrench: "
             + "  ".join(
@@ -164,6 +170,17 @@ def _mm_per_px(ctx: typer.Context, param: typer.CallbackParam, value: Optional[f
     return number(low=MM_PER_PX[0], high=MM_PER_PX[1])(ctx, param, value)
 
 
+def _sensor(ctx: typer.Context, param: typer.CallbackParam, value: Optional[str]):
+    """--sensor: one of the sensor kinds (common/sensors.py), the choices named."""
+    from common.sensors import SENSOR_KINDS
+
+    if value is not None and value not in SENSOR_KINDS:
+        problem = f"must be one of {', '.join(SENSOR_KINDS)}, got {value!r}"
+        # typer hands callbacks the click parameter it annotates with its private class (cli/options.py)
+        raise typer.BadParameter(problem, ctx=ctx, param=param)  # type: ignore[arg-type]
+    return value
+
+
 @app.command("import")
 @friendly
 def import_(
@@ -174,11 +191,57 @@ def import_(
         typer.Option(help="Frame calibration, mm per pixel (default: run.json's); 0.0001 to 10.", callback=_mm_per_px),
     ] = None,
     object_name: Annotated[Optional[str], typer.Option("--object", help="Object name (default: run.json's).")] = None,
+    sensor: Annotated[
+        Optional[str],
+        typer.Option(
+            help="Sensor kind: rgb, rgb_markers or white_markers (default: run.json's; one of them is required).",
+            callback=_sensor,
+        ),
+    ] = None,
+    profile: Annotated[
+        Optional[Path],
+        typer.Option(
+            help="The sensor's profile TOML (rig sensor calibrate); recorded in the run file like a run's. "
+            "Default: none recorded."
+        ),
+    ] = None,
+    crop: Annotated[bool, typer.Option("--crop", help="Non-square images: keep the centre square.")] = False,
+    pad: Annotated[
+        bool, typer.Option("--pad", help="Non-square images: centre them in a square filled with their edge colour.")
+    ] = False,
+    size: Annotated[
+        Optional[int],
+        typer.Option(
+            help="Resize the square images to N x N px (mm per pixel scaled to match). Default: keep their size.",
+            min=16,
+            max=4096,
+        ),
+    ] = None,
 ):
-    """Import tactile PNGs, a CSV of wrenches and poses and an object image from another rig."""
+    """Import tactile PNGs, a CSV of wrenches and poses and an object image from another rig.
+
+    run.json states the pose convention (docs/dataset.md, "Pose convention"); a y-down folder is
+    converted. Non-square frames or object images need --crop or --pad."""
+    from dataset.import_images import Squaring
     from dataset.interchange import import_run
 
-    typer.echo(f"{out}: {import_run(folder, out, mm_per_px=mm_per_px, object_name=object_name)} frames imported")
+    if crop and pad:
+        raise typer.BadParameter("give --crop or --pad, not both", param_hint="'--crop' / '--pad'")
+    record = ""
+    if profile is not None:
+        from sensor_sim.profile import load_profile
+
+        record = load_profile(profile).record()
+    frames = import_run(
+        folder,
+        out,
+        mm_per_px=mm_per_px,
+        object_name=object_name,
+        sensor=sensor,
+        sensor_profile=record,
+        squaring=Squaring("crop" if crop else "pad" if pad else None, size),
+    )
+    typer.echo(f"{out}: {frames} frames imported")
 
 
 @app.command()
@@ -187,11 +250,55 @@ def preview(
     path: Annotated[Path, typer.Argument(help="A run file.")],
     out: Annotated[Path, typer.Option(help="The contact sheet PNG to write.")],
     tiles: Annotated[int, typer.Option(help="How many evenly spaced frames.", min=1, max=200)] = 24,
+    condition: Annotated[
+        bool,
+        typer.Option(
+            "--condition", help="Overlay the condition (object at the pose) and mark it beside the contact seen."
+        ),
+    ] = False,
 ):
-    """A contact sheet PNG of frames labelled with their wrenches."""
-    from dataset.preview import preview as sheet
+    """A contact sheet PNG of frames labelled with their wrenches and poses; --condition overlays the
+    model's condition on each, so a mirrored or shifted pose shows at a glance."""
+    from dataset.preview import contact_sheet
 
-    typer.echo(f"{out}: {sheet(path, out, tiles=tiles)} frames")
+    sheet = contact_sheet(path, out, tiles=tiles, condition=condition)
+    typer.echo(f"{out}: {len(sheet.tiles)} frames")
+    if condition:
+        median = sheet.median_offset_px
+        if median is None:
+            typer.echo("  no frame shows both a contact and the object in view: no offset measured")
+            return
+        typer.echo(
+            f"  condition to contact: median {median:.1f} px of {sheet.frame_px} "
+            f"over {len(sheet.offsets_px)} frame(s) with a contact"
+        )
+        if median > OFFSET_WARN * sheet.frame_px:
+            typer.secho(
+                f"  warning: the condition lies {median:.0f} px from the contact seen in the frames: check the "
+                "pose convention (+y up, docs/dataset.md), mm_per_px and the contact origin",
+                fg=typer.colors.YELLOW,
+                err=True,
+            )
+
+
+@app.command()
+@friendly
+def view(
+    path: Annotated[Path, typer.Argument(help="A run file (HDF5), also one still being written.", dir_okay=False)],
+    host: Annotated[
+        str,
+        typer.Option(help="Address to listen on; any other than 127.0.0.1 needs the access token printed at start."),
+    ] = "127.0.0.1",
+    port: Annotated[int, typer.Option(help="TCP port (0: any free port).", min=0, max=65535)] = 8766,
+):
+    """Open a run file in the console's run browser (frames, wrench, pose and phases over time)."""
+    from cli.console.launch import run_console
+
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: no such file")
+    run_console(
+        config=None, sim=False, live=False, host=host, port=port, runs=[path.parent], files=[path], say=typer.echo
+    )
 
 
 def main() -> None:

@@ -304,6 +304,14 @@ def evaluate(
     batch_size: Annotated[int, typer.Option(help="Frames generated at once (memory).", min=1)] = 64,
     seed: Annotated[int, typer.Option(help="Noise seed.")] = 0,
     device: Annotated[Optional[str], typer.Option(help="cpu or cuda (default: cuda when available).")] = None,
+    profile: Annotated[
+        Optional[Path],
+        typer.Option(
+            help="Sensor profile TOML for the physics-render row (`rig sensor calibrate` writes one). Default: the "
+            "profile each run file records (found again by its content hash), else the shipped GelSight Mini.",
+            dir_okay=False,
+        ),
+    ] = None,
 ):
     """MSE, MAE, SSIM, PSNR (and marker error) per sampler setting against seconds per image, beside the
     physics render and the paper's table."""
@@ -328,6 +336,7 @@ def evaluate(
         batch_size=batch_size,
         device=device or ("cuda" if torch.cuda.is_available() else "cpu"),
         log=typer.echo,
+        profile=profile,
     )
     for r in ev.rows + ([ev.baseline] if ev.baseline else []):
         mk = "" if r.marker_px is None else f"  markers {r.marker_px:.2f} px"

@@ -104,11 +104,16 @@ def run_protocol(
     sim: bool,
     origin: tuple[float, float, float, float],
     settings: list[str] | None = None,
+    profile: Path | None = None,
 ) -> None:
+    """``profile``: the simulated sensor's profile TOML (--sim only; default the shipped one)."""
     from acquisition.executor import disk_bytes, preflight
+    from cli.session import check_profile_option, load_sim_profile
     from protocols.plan import AXES, Plan
     from protocols.spec import load_protocol
 
+    check_profile_option(profile, sim)
+    sensor_profile = load_sim_profile(profile) if sim else None  # a bad file is refused before anything opens
     protocol = load_protocol(name, settings)
     plan = Plan.of(protocol)
     origin_map = dict(zip(AXES, origin))
@@ -132,7 +137,7 @@ def run_protocol(
         if sim:
             from rig.sim.rig_sim import SimulatedRig
 
-            with SimulatedRig() as simulated:
+            with SimulatedRig(profile=sensor_profile) as simulated:
                 rig_config = simulated.config()
         else:
             from cli.session import resolve_config_path
@@ -153,15 +158,15 @@ def run_protocol(
     # signal; before or after, the rig still closes (a gauge left streaming breaks later commands).
     with SignalsAsExceptions():
         if sim:
-            _run_sim(protocol, plan, path, resume is not None, origin_map)
+            _run_sim(protocol, plan, path, resume is not None, origin_map, sensor_profile)
         else:
             _run_hw(protocol, plan, path, resume is not None, origin_map, config)
 
 
-def _run_sim(protocol, plan, path, resume, origin) -> None:
+def _run_sim(protocol, plan, path, resume, origin, profile=None) -> None:
     from cli.simulated import monitor_interval_s, simulated_rig_for
 
-    with simulated_rig_for(protocol) as (rig, simulated, header):
+    with simulated_rig_for(protocol, profile=profile) as (rig, simulated, header):
         _execute(
             rig,
             plan,

@@ -15,7 +15,9 @@ from typing import Annotated, Optional
 
 import typer
 
+from cli.object_app import app as object_app
 from cli.options import number
+from cli.sensor_app import app as sensor_app
 from rig.config import MAX_FORCE_LIMIT_N, MAX_SPEED, TRAVEL_LIMIT
 from rig.config.registry import kinds
 
@@ -33,12 +35,22 @@ protocols_app = typer.Typer(
 app.add_typer(protocols_app, name="protocols")
 camera_app = typer.Typer(help="The tactile camera: check it before a run.", no_args_is_help=True)
 app.add_typer(camera_app, name="camera")
+app.add_typer(sensor_app, name="sensor")
+app.add_typer(object_app, name="object")
 
 ConfigOpt = Annotated[
     Optional[Path],
     typer.Option("--config", "-c", help="Rig config TOML (default: $RIG_CONFIG, then ./rig.toml).", dir_okay=False),
 ]
 SimOpt = Annotated[bool, typer.Option("--sim", help="Use the built-in simulated rig instead of hardware.")]
+ProfileOpt = Annotated[
+    Optional[Path],
+    typer.Option(
+        help="With --sim: the simulated sensor's profile TOML (`rig sensor calibrate` writes one; default: the "
+        "shipped GelSight Mini).",
+        dir_okay=False,
+    ),
+]
 
 
 class AxisName(str, enum.Enum):
@@ -104,13 +116,13 @@ def _say(text: str) -> None:
 
 @app.command()
 @friendly_errors
-def status(config: ConfigOpt = None, sim: SimOpt = False):
+def status(config: ConfigOpt = None, sim: SimOpt = False, profile: ProfileOpt = None):
     """Print every axis (position, state, homed, warnings), the gauge and the current wrench, and the
     camera when configured (resolution, fps, exposure and white balance locked, age of the newest frame)."""
     from cli.session import open_rig
     from cli.views import print_status
 
-    with open_rig(config, sim, camera=None) as rig:
+    with open_rig(config, sim, profile=profile, camera=None) as rig:
         print_status(rig)
 
 
@@ -150,13 +162,14 @@ def jog(
     pendant: Annotated[bool, typer.Option(help="Interactive mode: jog with the HID pendant (SpaceMouse).")] = False,
     config: ConfigOpt = None,
     sim: SimOpt = False,
+    profile: ProfileOpt = None,
 ):
     """Jog one axis: by --step, to --to, or interactively (keys + and - or arrows; q quits)."""
     from cli.session import open_rig
 
     if step is not None and to is not None:
         _fail("give --step or --to, not both")
-    with open_rig(config, sim, axes=(axis.value,)) as rig:
+    with open_rig(config, sim, profile=profile, axes=(axis.value,)) as rig:
         unit = rig.config.axes[axis.value].unit
         if step is not None or to is not None:
             with rig.motion("jog", on_start=_say) as m:
@@ -181,12 +194,13 @@ def home(
     ] = None,
     config: ConfigOpt = None,
     sim: SimOpt = False,
+    profile: ProfileOpt = None,
 ):
     """Home axes (z first, so the indenter lifts clear before anything slides)."""
     from cli.session import open_rig
 
     names = tuple(a.value for a in axis) if axis else None
-    with open_rig(config, sim, axes=names) as rig:
+    with open_rig(config, sim, profile=profile, axes=names) as rig:
         with rig.motion("home", on_start=_say) as m:
             m.home_axes(names)
         for name, pos in rig.positions().items():
@@ -199,12 +213,13 @@ def zero(
     samples: Annotated[int, typer.Option(help="Samples averaged for the tare.", min=1, max=10000)] = 50,
     config: ConfigOpt = None,
     sim: SimOpt = False,
+    profile: ProfileOpt = None,
 ):
     """Tare the force gauge: average unloaded samples and print the bias removed (N, N·mm)."""
     from cli.session import open_rig
     from rig.types import WRENCH_COMPONENTS, WRENCH_UNITS
 
-    with open_rig(config, sim, axes=()) as rig:
+    with open_rig(config, sim, profile=profile, axes=()) as rig:
         bias = rig.tare(samples)
         typer.echo(
             "bias removed: " + ", ".join(f"{c} {v:+.4f} {u}" for c, v, u in zip(WRENCH_COMPONENTS, bias, WRENCH_UNITS))
@@ -242,12 +257,13 @@ def find_contact_cmd(
     ] = 10.0,
     config: ConfigOpt = None,
     sim: SimOpt = False,
+    profile: ProfileOpt = None,
 ):
     """Lower z under the force limits until the indenter touches the gel; print the contact point."""
     from cli.session import open_rig
     from rig.contact_search import find_contact
 
-    with open_rig(config, sim, axes=("z",)) as rig:
+    with open_rig(config, sim, profile=profile, axes=("z",)) as rig:
         found = find_contact(rig, threshold_N=threshold, speed_mm_s=speed, max_travel_mm=max_travel, on_start=_say)
     typer.echo(
         f"contact at z = {found.z_mm:.4f} mm (|Fz| = {abs(found.fz_N):.3f} N, resolution "
@@ -268,6 +284,7 @@ def camera_snapshot(
     ] = Path("frame.png"),
     config: ConfigOpt = None,
     sim: SimOpt = False,
+    profile: ProfileOpt = None,
 ):
     """Grab one frame from the camera and write it to --out; print its size and the camera's settings."""
     import cv2
@@ -282,7 +299,7 @@ def camera_snapshot(
         )
     if not out.parent.is_dir():
         _fail(f"--out: folder {out.parent} does not exist")
-    with open_rig(config, sim, axes=(), gauge=False, camera=True) as rig:
+    with open_rig(config, sim, profile=profile, axes=(), gauge=False, camera=True) as rig:
         report = rig.camera.report()
         rig.camera.trigger()
         frame = rig.camera.read(timeout_s=2.0)
@@ -302,6 +319,7 @@ def sim_serve(
         Transport, typer.Option(help="pty (virtual serial ports) or tcp (socket:// on 127.0.0.1).")
     ] = Transport.pty,
     gauge: Annotated[GaugeKind, typer.Option(help="Which force gauge to simulate.")] = GaugeKind("ft300"),
+    profile: ProfileOpt = None,
 ):
     """Start the simulated rig, print its port URLs, write a config; runs until Ctrl-C."""
     import faulthandler
@@ -310,9 +328,11 @@ def sim_serve(
 
     faulthandler.register(signal.SIGUSR1)  # `kill -USR1 PID` prints every thread's stack (a stuck simulator)
 
+    from cli.session import load_sim_profile
     from rig.sim.rig_sim import SERVED_DEVICE_TIMEOUT_S, SimulatedRig
 
-    with SimulatedRig(transport=transport.value, gauge=gauge.value) as simulated:
+    sensor_profile = load_sim_profile(profile)
+    with SimulatedRig(transport=transport.value, gauge=gauge.value, profile=sensor_profile) as simulated:
         camera = simulated.serve_camera()
         out.write_text(
             "# Written by `rig sim serve`; valid while that process runs.\n"
@@ -321,6 +341,7 @@ def sim_serve(
         for name, server in simulated.servers.items():
             typer.echo(f"{name:7s} {server.url}")
         typer.echo(f"{'camera':7s} {camera.url}")
+        typer.echo(f"{'sensor':7s} {sensor_profile.name} ({sensor_profile.path})")
         typer.echo(f"config  {out}   (try: rig status --config {out})")
         typer.echo("serving; Ctrl-C stops")
         try:
@@ -395,6 +416,7 @@ def run_protocol_cmd(
     settings: SetOpt = None,
     config: ConfigOpt = None,
     sim: SimOpt = False,
+    profile: ProfileOpt = None,
 ):
     """Run a protocol with synchronised capture (frame + wrench + pose at the protocol's rate) into HDF5.
 
@@ -411,7 +433,28 @@ def run_protocol_cmd(
         sim=sim,
         origin=_origin(origin),
         settings=settings or [],
+        profile=profile,
     )
+
+
+@app.command("console")
+@friendly_errors
+def console_cmd(
+    host: Annotated[
+        str,
+        typer.Option(help="Address to listen on; any other than 127.0.0.1 needs the access token printed at start."),
+    ] = "127.0.0.1",
+    port: Annotated[int, typer.Option(help="TCP port (0: any free port).", min=0, max=65535)] = 8765,
+    runs: Annotated[
+        Path, typer.Option(help="Folder whose *.h5 run files the run browser lists.", file_okay=False)
+    ] = Path("runs"),
+    config: ConfigOpt = None,
+    sim: SimOpt = False,
+):
+    """Serve the web console: live tactile frame, wrench traces, axes, guarded jog/stop/home/zero, run browser."""
+    from cli.console.launch import run_console
+
+    run_console(config=config, sim=sim, live=True, host=host, port=port, runs=[runs], say=typer.echo)
 
 
 if __name__ == "__main__":

@@ -34,9 +34,11 @@ def open_rig(
     axes: tuple[str, ...] | None = None,
     gauge: bool = True,
     camera: bool | None = False,
+    profile: Path | None = None,
 ):
     """Yield an open ``Rig`` with only the devices asked for; closes everything on exit.
-    ``camera=None``: the camera when the config has a [camera] section.
+    ``camera=None``: the camera when the config has a [camera] section. ``profile``: the
+    simulated sensor's profile TOML (--sim only; default the shipped GelSight Mini).
 
     SIGTERM and SIGHUP (and SIGINT) raise MotionInterrupted for the whole command, not
     only while something moves, so that a signal while the rig opens or closes still
@@ -46,11 +48,12 @@ def open_rig(
     from rig.motion import SignalsAsExceptions
     from rig.rig import Rig
 
+    check_profile_option(profile, sim)
     with SignalsAsExceptions():
         if sim:
             from rig.sim.rig_sim import SimulatedRig
 
-            with SimulatedRig() as simulated:
+            with SimulatedRig(profile=load_sim_profile(profile)) as simulated:
                 cfg = simulated.config()
                 with Rig.open(
                     cfg, simulated.clock, axes=axes, gauge=gauge, camera=_camera(cfg, camera), sim=simulated
@@ -64,3 +67,21 @@ def open_rig(
 
 def _camera(cfg, camera: bool | None) -> bool:
     return cfg.camera is not None if camera is None else camera
+
+
+def check_profile_option(profile: Path | None, sim: bool) -> None:
+    """--profile describes the simulated sensor: with hardware it would be silently ignored."""
+    if profile is not None and not sim:
+        raise ConfigError(str(profile), "--profile", "a sensor profile sets up the simulated sensor: use it with --sim")
+
+
+def load_sim_profile(profile: Path | None):
+    """The SensorProfile at ``profile`` (None: the shipped default); a bad file is a ConfigError
+    naming the file and key."""
+    from sensor_sim.profile import ProfileError, resolve_profile
+
+    try:
+        return resolve_profile(profile)
+    except ProfileError as exc:
+        message = str(exc).removeprefix(f"{profile}: ")  # ConfigError names the file itself
+        raise ConfigError(str(profile), "--profile", message) from None

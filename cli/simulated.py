@@ -15,17 +15,27 @@ from rig.clock import ManualClock
 from rig.config import SafetyConfig
 from rig.rig import Rig
 from rig.sim.rig_sim import SimulatedRig
+from sensor_sim.profile import SensorProfile, default_profile
 from sensor_sim.world_contact import ElastomerContact
 
 GAUGE_RATE_HZ = 10.0  # simulated time; the run samples the wrench at the capture rate
 
 
 @contextlib.contextmanager
-def simulated_rig_for(protocol, *, safety: SafetyConfig | None = None, transport: str = "pty"):
-    """Yield (rig, simulated rig, run-file header) for ``protocol`` on the simulated rig."""
+def simulated_rig_for(
+    protocol, *, safety: SafetyConfig | None = None, transport: str = "pty", profile: SensorProfile | None = None
+):
+    """Yield (rig, simulated rig, run-file header) for ``protocol`` on the simulated rig with the
+    sensor ``profile`` (default: the shipped GelSight Mini), whose name and hash the run file keeps."""
     clock = ManualClock()
+    profile = profile or default_profile()
     with SimulatedRig(
-        clock, indenter=protocol.object, sensor_kind=protocol.sensor, gauge_rate_hz=GAUGE_RATE_HZ, transport=transport
+        clock,
+        indenter=protocol.object,
+        sensor_kind=protocol.sensor,
+        gauge_rate_hz=GAUGE_RATE_HZ,
+        transport=transport,
+        profile=profile,
     ) as simulated:
         simulated.triggered_camera = True
         cfg = simulated.config()
@@ -37,6 +47,7 @@ def simulated_rig_for(protocol, *, safety: SafetyConfig | None = None, transport
         header = {
             "rig_config": RIG_CONFIG_MARK + "\n" + simulated.config_toml(),
             "mm_per_px": geometry.width_mm / cfg.camera.width,
+            "sensor_profile": profile.record(),
         }
         with Rig.open(cfg, clock, camera=True, sim=simulated) as rig:
             yield rig, simulated, header

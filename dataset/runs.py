@@ -61,6 +61,7 @@ class RunSummary:
     wrench_min: np.ndarray
     wrench_max: np.ndarray
     mm_per_px: float
+    imported: str = ""  # for a run made by `dataset import`: its pose convention and image changes
 
 
 def summarize(path: str | Path) -> RunSummary:
@@ -85,7 +86,17 @@ def summarize(path: str | Path) -> RunSummary:
             wrench_min=w.min(axis=0) if n else np.full(6, np.nan),
             wrench_max=w.max(axis=0) if n else np.full(6, np.nan),
             mm_per_px=float(a.get(S.ATTR_MM_PER_PX, np.nan)),
+            imported=_imported(str(a.get(S.ATTR_RIG_CONFIG, ""))),
         )
+
+
+def _imported(rig_config: str) -> str:
+    """What `dataset import` recorded in rig_config after its first line ("imported from FOLDER"):
+    the folder's stated pose convention, the axes it flipped, the images' crop, pad or resize."""
+    lines = rig_config.splitlines()
+    if not lines or not lines[0].startswith("imported from "):
+        return ""
+    return "; ".join([lines[0].removeprefix("imported from "), *lines[1:]])
 
 
 @dataclass

@@ -2,8 +2,13 @@
 
 For a frame it takes what a physics simulator is given (the object and its measured
 pose x, y, z, θ), solves the gel's contact mechanics the simulated rig solves
-(sensor_sim.world_contact.rig_contact) and lights the result with the calibrated optics
-(sensor_sim.optics), with no sensor noise. Each frame is rendered on its own,
+(sensor_sim.world_contact) and lights the result with a sensor profile's calibrated
+optics (sensor_sim.optics), with no sensor noise.
+
+The profile: the one given (``evaluate --profile``), else the one the run file records
+(``sensor_profile``, found again by its content hash), else the shipped GelSight Mini
+default. The gel (thickness, modulus) is the profile's; the field of view is the run's
+(frame width × its mm_per_px) when the file has a scale, else the profile's. Each frame is rendered on its own,
 without the friction history of the frames before it, as Taxim or FOTS render one.
 
 Background: the run's own no-contact reference frame for sensors without markers (so
@@ -14,6 +19,8 @@ at rest that the render draws itself.
 
 from __future__ import annotations
 
+import dataclasses
+import math
 import time
 
 import cv2
@@ -27,12 +34,34 @@ class BaselineUnavailable(ValueError):
     pass
 
 
+RIG_CELLS = 96  # mechanics cells across the pad, as the simulated rig (rig/sim/rig_sim.py)
+
+
+def run_profile(run_path: str, attrs: dict, profile=None):
+    """The SensorProfile for a run's physics render (see the module docstring); BaselineUnavailable
+    when the run records a profile that cannot be found again."""
+    from sensor_sim.profile import ProfileError, default_profile, profile_from_record
+
+    if profile is not None:
+        return profile
+    recorded = attrs.get(S.ATTR_SENSOR_PROFILE)
+    if recorded is None:
+        return default_profile()
+    try:
+        return profile_from_record(
+            recorded.decode() if isinstance(recorded, bytes) else str(recorded), where=str(run_path)
+        )
+    except ProfileError as exc:
+        raise BaselineUnavailable(str(exc)) from None
+
+
 class PhysicsRender:
-    def __init__(self, run_path: str, *, noise_std: float = 0.0):
+    def __init__(self, run_path: str, *, noise_std: float = 0.0, profile=None):
+        """``profile``: a SensorProfile to render with (default: the run's, see the module docstring)."""
         from objects.indenters import INDENTERS
-        from sensor_sim.light import OpticsSpec
+        from sensor_sim.contact import SensorGeometry
         from sensor_sim.optics import Renderer
-        from sensor_sim.world_contact import rig_contact
+        from sensor_sim.world_contact import ElastomerContact
 
         with h5py.File(run_path, "r", swmr=True) as f:
             attrs = dict(f.attrs)
@@ -46,10 +75,17 @@ class PhysicsRender:
             )
         if h != w:
             raise BaselineUnavailable(f"{run_path}: frames are {w}x{h}; the simulator renders a square pad")
-        self.contact = rig_contact(obj)
-        spec = OpticsSpec(kind=kind, height_px=h, width_px=w, noise_std=noise_std)
+        self.profile = run_profile(run_path, attrs, profile)
+        mm_per_px = float(attrs.get(S.ATTR_MM_PER_PX, float("nan")))
+        geometry = (
+            SensorGeometry(width_mm=w * mm_per_px, height_mm=h * mm_per_px, cells=RIG_CELLS)
+            if math.isfinite(mm_per_px) and mm_per_px > 0
+            else self.profile.geometry(cells=RIG_CELLS)
+        )
+        self.contact = ElastomerContact(obj, self.profile.gel(), geometry)
+        spec = dataclasses.replace(self.profile.optics_spec(kind), height_px=h, width_px=w, noise_std=noise_std)
         background = None if spec.has_markers else reference
-        self.renderer = Renderer(spec, self.contact.solver.geometry, background)
+        self.renderer = Renderer(spec, geometry, background, profile=self.profile)
 
     def render(self, pose_measured: np.ndarray) -> np.ndarray:
         """BGR uint8 frame at the run's size for a pose (x, y, z mm from the contact point, θ deg)."""
@@ -62,17 +98,18 @@ class PhysicsRender:
 
 
 def render_frames(
-    run_paths: list[str], rows: np.ndarray, poses: np.ndarray, size: int
+    run_paths: list[str], rows: np.ndarray, poses: np.ndarray, size: int, profile=None
 ) -> tuple[list[np.ndarray], float]:
     """Physics renders of (run, frame) ``rows`` at their poses, resized to ``size`` as the
-    dataset resizes real frames; and the seconds per frame it took."""
+    dataset resizes real frames; and the seconds per frame it took. ``profile``: a
+    SensorProfile for every run (default: each run's own, see the module docstring)."""
     renderers: dict[int, PhysicsRender] = {}
     out = []
     t0 = time.perf_counter()
     for (run, _), pose in zip(rows, poses):
         run = int(run)
         if run not in renderers:
-            renderers[run] = PhysicsRender(run_paths[run])
+            renderers[run] = PhysicsRender(run_paths[run], profile=profile)
         img = renderers[run].render(pose)
         if img.shape[0] != size:
             img = cv2.resize(img, (size, size), interpolation=cv2.INTER_AREA)

@@ -90,9 +90,11 @@ def evaluate(
     batch_size: int = 64,
     n_examples: int = 6,
     log: Callable[[str], None] = lambda line: None,
+    profile: str | Path | None = None,
 ) -> Evaluation:
     """``limit`` frames spread evenly over the part (all by default); ``markers`` None: on
-    when the split's sensor has markers."""
+    when the split's sensor has markers. ``profile``: the sensor profile TOML of the physics
+    render (default: each run's recorded profile, else the shipped one; model/baseline.py)."""
     model = TrainedModel.load(run_dir, device=device)
     data = TactileDataset(split_dir, part, size=model.cfg.image_size)
     if len(data) == 0:
@@ -110,12 +112,15 @@ def evaluate(
 
     if baseline:
         from model.baseline import BaselineUnavailable, render_frames
+        from sensor_sim.profile import load_profile
 
+        sensor = load_profile(profile) if profile is not None else None  # a bad file: ProfileError, one line
         try:
             rows = np.array([[it["run"], it["frame"]] for it in items])
             poses = np.stack([it["pose"].numpy() for it in items])
-            log(f"physics render of {len(items)} frames")
-            rendered, seconds = render_frames(data.runs, rows, poses, model.cfg.image_size)
+            which = f"sensor profile {sensor.name} ({sensor.path})" if sensor else "each run's sensor profile"
+            log(f"physics render of {len(items)} frames with {which}")
+            rendered, seconds = render_frames(data.runs, rows, poses, model.cfg.image_size, sensor)
             ev.baseline = _score(PHYSICS, real, rendered, seconds, markers)
             ev.examples[PHYSICS] = [rendered[i] for i in ex]
         except BaselineUnavailable as exc:

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Callable
+from typing import Callable, ClassVar
 
 import numpy as np
 
@@ -24,6 +24,7 @@ class Indenter:
     radius_mm: float  # bounding radius of the face (for cropping and placement)
     separation: Callable[[np.ndarray, np.ndarray], np.ndarray] = field(repr=False)
     color_bgr: tuple[int, int, int] = (170, 170, 175)  # steel / 3D-print grey
+    has_geometry: ClassVar[bool] = True  # an object file without a height map has none (objects/object_file.py)
 
     def separation_at(self, X: np.ndarray, Y: np.ndarray, x_mm: float, y_mm: float, theta_deg: float) -> np.ndarray:
         """Separation on sensor coordinates (X, Y) mm for the indenter axis at (x, y), turned by θ."""

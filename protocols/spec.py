@@ -23,7 +23,7 @@ class Protocol:
     text: str  # the file as written: stored in every run file
     name: str
     description: str
-    object: str  # indenter name (the simulated rig presses this one)
+    object: str  # library object name, or an object file's absolute path (the simulated rig presses it)
     sensor: str  # sensor kind
     depth_step_mm: float
     max_depth_mm: float
@@ -58,7 +58,7 @@ def parse_protocol(text: str, path: str = "<string>") -> Protocol:
         text=text,
         name=meta.get("name", str),
         description=meta.get("description", str, ""),
-        object=meta.get("object", str, choices=tuple(INDENTERS)),
+        object=_object(meta, path, tuple(INDENTERS)),
         sensor=meta.get("sensor", str, "rgb", choices=SENSOR_KINDS),
         # 1 µm per level is below what the stages repeat; 10 mm is deeper than any tactile gel
         # is thick (a few mm) — deeper presses only crush the sensor. The planner also caps
@@ -89,6 +89,26 @@ def parse_protocol(text: str, path: str = "<string>") -> Protocol:
             f"must be a whole number of depth steps ({p.depth_step_mm} mm), got {p.max_depth_mm}",
         )
     return p
+
+
+def _object(meta: Table, path: str, library: tuple[str, ...]) -> str:
+    """A library object's name, or an object file (``.toml``, relative to the protocol file or
+    absolute) as its absolute path, loaded here so that a broken object file fails at load."""
+    from objects.object_file import is_object_file, load_object_file
+
+    value = meta.get("object", str)
+    if not is_object_file(value):
+        if value not in library:
+            raise meta.error(
+                "object", f"must be one of {', '.join(map(repr, library))} or an object file (.toml), got {value!r}"
+            )
+        return value
+    file = Path(value).expanduser()
+    file = file if file.is_absolute() else Path(path).parent / file
+    if not file.is_file():
+        raise meta.error("object", f"object file {value!r} not found (looked at {file.absolute()})")
+    load_object_file(file)
+    return str(file.absolute())
 
 
 def protocol_names() -> list[str]:

@@ -16,3 +16,16 @@ if [ ! -f "$stamp" ]; then
     rm -f .venv/.installed-*
     touch "$stamp"
 fi
+
+# The console's browser tests (tests/test_console.py) drive Debian's chromium through
+# chromedriver. Installed here only as root (CI) where chromium is missing and apt-get
+# exists; anyone else gets a note: install chromium and its driver yourself, or those
+# tests skip (outside CI).
+if ! command -v chromium >/dev/null 2>&1; then
+    if [ "$(id -u)" -eq 0 ] && command -v apt-get >/dev/null 2>&1; then
+        apt-get update -qq
+        DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium chromium-driver >/dev/null
+    else
+        echo "note: chromium and chromium-driver are not installed: the web console's browser tests will skip" >&2
+    fi
+fi

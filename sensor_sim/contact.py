@@ -138,6 +138,7 @@ class TactileContact:
         """Solve at ``pose`` with the tangential motion since contact began.
 
         ``fields``: any of "uz" (surface sink), "uxy" (tangential displacement).
+        ``p0``, ``q0``: warm starts, on the full sensor grid or on this solve's crop.
         A depth past the gel thickness presses the indenter on the window (see
         ``backing.py``): finite, continuous, reported in ``result.backing``.
         Raises PhysicsInputError for a non-finite pose.
@@ -165,13 +166,15 @@ class TactileContact:
         hc = h[crop]
         Xc, Yc = self.X[crop], self.Y[crop]
         k = kernels_for(hc.shape[0], hc.shape[1], dx, self.gel)
-        p_init = p0 if p0 is not None and p0.shape == hc.shape else None
+        p_init = self._on_crop(p0, crop, hc.shape)
         overlap = d - self.gel.thickness_mm  # past the window plane where > 0
         normal = solve_normal(k, gel_separation(hc, d, self.gel.thickness_mm), d, tol=self.tol, p0=p_init)
         backing = backing_load(hc, Xc, Yc, overlap, dx * dx)
         tangential = None
         if (shift_mm != (0.0, 0.0) or twist_rad != 0.0) and normal.force_N > 0:
-            q_init = q0 if q0 is not None and q0[0].shape == hc.shape else None
+            qx_init = self._on_crop(q0[0], crop, hc.shape) if q0 is not None else None
+            qy_init = self._on_crop(q0[1], crop, hc.shape) if q0 is not None else None
+            q_init = (qx_init, qy_init) if qx_init is not None and qy_init is not None else None
             tangential = solve_tangential(
                 k,
                 normal.pressure_MPa,
@@ -198,6 +201,15 @@ class TactileContact:
         out = self.add_fields(out, fields)
         out.solve_ms = (time.perf_counter() - t0) * 1e3
         return out
+
+    def _on_crop(self, guess: np.ndarray | None, crop: tuple[slice, slice], shape) -> np.ndarray | None:
+        """A warm start on this solve's crop: a full-grid guess is cut to it (the contact moves
+        across the grid, so an earlier crop's array would be shifted); a crop-sized one is used as is."""
+        if guess is None:
+            return None
+        if guess.shape == self.X.shape:
+            return guess[crop]
+        return guess if guess.shape == shape else None
 
     def add_fields(self, out: ContactResult, fields) -> ContactResult:
         """Compute the displacement fields named in ``fields`` for a solve (also an earlier one)."""

@@ -48,6 +48,18 @@ def normal_lookup(gx: np.ndarray, gy: np.ndarray, bins: int) -> tuple[np.ndarray
     return idx, w
 
 
+def _corner_cells(gx: np.ndarray, gy: np.ndarray, bins: int) -> tuple[np.ndarray, list[np.ndarray]]:
+    """``normal_lookup`` unstacked: the first corner's flat index and the four weights, each
+    shaped like ``gx``: the same numbers without building the (..., 4) arrays."""
+    inv = 1.0 / np.sqrt(1.0 + gx * gx + gy * gy)
+    u = (1.0 - gx * inv) * (0.5 * (bins - 1))
+    v = (1.0 - gy * inv) * (0.5 * (bins - 1))
+    i0 = np.clip(np.floor(u).astype(np.int32), 0, bins - 2)
+    j0 = np.clip(np.floor(v).astype(np.int32), 0, bins - 2)
+    fu, fv = (u - i0).astype(np.float32), (v - j0).astype(np.float32)
+    return j0 * bins + i0, [(1 - fu) * (1 - fv), fu * (1 - fv), (1 - fu) * fv, fu * fv]
+
+
 @dataclass(frozen=True)
 class LightModel:
     """Colour change of the gel as a function of its surface normal and of position.
@@ -109,9 +121,21 @@ class LightModel:
 
     def change(self, gx: np.ndarray, gy: np.ndarray, background: np.ndarray) -> np.ndarray:
         """(H, W, 3) colour change for slopes (gx, gy) over ``background`` (H, W, 3)."""
-        idx, w = normal_lookup(gx, gy, self.bins)
-        flat = self.table_bgr.reshape(3, -1)
-        delta = np.stack([(flat[ch][idx] * w).sum(axis=-1) for ch in range(3)], axis=-1)
+        # Per channel, one contiguous gather per corner, the corners summed in the order a
+        # (..., 4) sum takes them: the same float32 bits as stacking the corners and summing
+        # (tested), ~5x faster (most of a simulated frame's render).
+        k, w = _corner_cells(gx, gy, self.bins)
+        corners = [k, k + 1, k + self.bins, k + self.bins + 1]
+        channels = []
+        for table in self.table_bgr.reshape(3, -1):
+            acc = np.take(table, corners[0])
+            acc *= w[0]
+            for index, weight in zip(corners[1:], w[1:]):
+                corner = np.take(table, index)
+                corner *= weight
+                acc += corner
+            channels.append(acc)
+        delta = np.stack(channels, axis=-1)
         if self.shading == "multiplicative":
             delta *= background / np.asarray(self.reference_bgr, dtype=np.float32)
         return delta

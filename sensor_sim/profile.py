@@ -8,11 +8,15 @@ It holds the frame size, the scale (mm per pixel), the gel (thickness, modulus),
 optics (``LightModel``: normal lookup table, blur, shading), the marker layout for
 marker kinds and the sensor noise. Every value is checked on load: a missing key,
 a NaN or infinity, or a value out of range is a ``ProfileError`` naming the file and key.
+
+A run recorded with a profile stores ``profile.record()`` (name, content hash, file);
+``profile_from_record`` finds the same profile again (by hash, never by name alone).
 """
 
 from __future__ import annotations
 
 import functools
+import hashlib
 import math
 import tomllib
 from dataclasses import dataclass
@@ -22,6 +26,7 @@ import cv2
 import numpy as np
 
 from sensor_sim.contact import SensorGeometry
+from sensor_sim.elastomer import Elastomer
 from sensor_sim.light import SHADINGS, LightModel, OpticsSpec
 
 DEFAULT_PROFILE = Path(__file__).parent / "data" / "gelsight_mini.toml"
@@ -46,9 +51,45 @@ class SensorProfile:
     marker_pitch_mm: float = 0.7
     marker_radius_mm: float = 0.17
     marker_darkness: float = 0.8
+    path: str = ""  # the TOML it was loaded from ("" when built in memory)
 
-    def geometry(self) -> SensorGeometry:
-        return SensorGeometry(width_mm=self.width_px * self.mm_per_px, height_mm=self.height_px * self.mm_per_px)
+    def geometry(self, cells: int = 128) -> SensorGeometry:
+        """The gel pad the camera sees; ``cells`` mechanics cells across its longer side."""
+        return SensorGeometry(
+            width_mm=self.width_px * self.mm_per_px, height_mm=self.height_px * self.mm_per_px, cells=cells
+        )
+
+    def gel(self) -> Elastomer:
+        """The profile's gel (thickness, modulus; Poisson ratio and friction the simulator's defaults)."""
+        return Elastomer(E_MPa=self.gel_E_MPa, thickness_mm=self.gel_thickness_mm)
+
+    def content_hash(self) -> str:
+        """sha256 (hex) of everything that changes a rendered frame or a wrench: name, sizes,
+        gel, noise, markers, optics and background pixels. Copies of a file share it; the
+        ``source`` text and the file's name or place do not enter."""
+        h = hashlib.sha256()
+        numbers = (
+            self.width_px,
+            self.height_px,
+            self.mm_per_px,
+            self.gel_thickness_mm,
+            self.gel_E_MPa,
+            self.noise_std,
+            self.marker_pitch_mm,
+            self.marker_radius_mm,
+            self.marker_darkness,
+            self.light.blur_mm,
+            *self.light.reference_bgr,
+        )
+        h.update(f"{self.name}|{self.light.shading}|{'|'.join(repr(float(v)) for v in numbers)}".encode())
+        h.update(np.ascontiguousarray(self.light.table_bgr, dtype=np.float32).tobytes())
+        bg = np.ascontiguousarray(self.background, dtype=np.uint8)
+        h.update(repr(bg.shape).encode() + bg.tobytes())
+        return h.hexdigest()
+
+    def record(self) -> str:
+        """What a run file stores about the profile it was simulated with (TOML text)."""
+        return f'name = {_toml_str(self.name)}\nsha256 = "{self.content_hash()}"\nfile = {_toml_str(self.path)}\n'
 
     def optics_spec(self, kind: str = "rgb") -> OpticsSpec:
         return OpticsSpec(
@@ -170,6 +211,7 @@ def load_profile(path: str | Path) -> SensorProfile:
         marker_pitch_mm=float(n["markers.pitch_mm"]),
         marker_radius_mm=float(n["markers.radius_mm"]),
         marker_darkness=float(n["markers.darkness"]),
+        path=str(path.resolve()),
     )
 
 
@@ -219,3 +261,45 @@ table_bins = {light.bins}
 def default_profile() -> SensorProfile:
     """The shipped GelSight Mini profile (fitted by bench/calibrate_optics.py)."""
     return load_profile(DEFAULT_PROFILE)
+
+
+def resolve_profile(path: str | Path | None) -> SensorProfile:
+    """The profile at ``path``, or the shipped default when None; ProfileError as load_profile."""
+    return default_profile() if path is None else load_profile(path)
+
+
+def parse_record(text: str, where: str = "run file") -> dict[str, str]:
+    """{name, sha256, file} of a stored ``SensorProfile.record()``; ProfileError if malformed."""
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ProfileError(f"{where}: the recorded sensor profile is not valid TOML ({exc})") from None
+    missing = [k for k in ("name", "sha256", "file") if not isinstance(data.get(k), str)]
+    if missing:
+        raise ProfileError(f"{where}: the recorded sensor profile lacks {', '.join(missing)}")
+    return {k: data[k] for k in ("name", "sha256", "file")}
+
+
+def profile_from_record(text: str, where: str = "run file") -> SensorProfile:
+    """The profile a run was recorded with: its recorded file, else the shipped default, whichever
+    has the recorded content hash. ProfileError (naming name, hash and file) when neither has."""
+    rec = parse_record(text, where)
+    candidates = [rec["file"]] if rec["file"] else []
+    candidates.append(str(DEFAULT_PROFILE))
+    for candidate in candidates:
+        if not Path(candidate).is_file():
+            continue
+        try:
+            profile = default_profile() if Path(candidate) == DEFAULT_PROFILE else load_profile(candidate)
+        except ProfileError:
+            continue
+        if profile.content_hash() == rec["sha256"]:
+            return profile
+    raise ProfileError(
+        f"{where}: recorded with sensor profile {rec['name']!r} (sha256 {rec['sha256'][:12]}…, file "
+        f"{rec['file'] or '?'}), which is not there or has changed since: pass --profile FILE"
+    )
+
+
+def _toml_str(text: str) -> str:
+    return '"' + text.replace("\\", "\\\\").replace('"', '\\"') + '"'

@@ -16,6 +16,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.fft as sfft
 
 from sensor_sim.kernels import Kernels
 
@@ -46,6 +47,23 @@ def _lipschitz(kernels: Kernels) -> float:
     kxx, kyy, kxy = (k.real for k in kernels.tangential_hat)
     half_trace = (kxx + kyy) / 2
     return float(np.max(half_trace + np.sqrt(((kxx - kyy) / 2) ** 2 + kxy**2)))
+
+
+def _displacement(kernels: Kernels, precise: bool):
+    """(qx, qy) -> (ux, uy): ``kernels.tangential_displacement`` with both fields in one
+    forward and one inverse transform call (the same numbers: pocketfft transforms each
+    slice alone); an iteration on a protocol's crop is mostly per-call overhead."""
+    kxx, kyy, kxy = kernels.tangential_hat64 if precise else kernels.tangential_hat
+    dtype = np.float64 if precise else np.float32
+    shape, ny, nx = kernels.shape, kernels.ny, kernels.nx
+
+    def apply(qx: np.ndarray, qy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        f = sfft.rfft2(np.stack((qx, qy)).astype(dtype, copy=False), s=shape, axes=(-2, -1), workers=1)
+        u_hat = np.stack((kxx * f[0] + kxy * f[1], kxy * f[0] + kyy * f[1]))
+        u = sfft.irfft2(u_hat, s=shape, axes=(-2, -1), workers=1)[:, :ny, :nx]
+        return u[0].astype(np.float64), u[1].astype(np.float64)
+
+    return apply
 
 
 def solve_tangential(
@@ -89,8 +107,9 @@ def solve_tangential(
     yx, yy, t = qx, qy, 1.0
     residual, it, converged, precise = np.inf, 0, False, False
     mark, mark_at = np.inf, 0  # the last residual that halved the one before, and when
+    displacement = _displacement(kernels, precise)
     for it in range(1, max_iter + 1):
-        ux, uy = kernels.tangential_displacement(yx, yy, precise=precise)
+        ux, uy = displacement(yx, yy)
         nx, ny = project(yx - step * (ux - dxf), yy - step * (uy - dyf))
         # Gradient-based adaptive restart (O'Donoghue & Candès 2015): drop the momentum
         # when it points uphill; turns FISTA's O(1/k²) into linear convergence here.
@@ -112,6 +131,7 @@ def solve_tangential(
             if precise:
                 break  # stalled in float64 as well: tol is beyond reach
             precise, mark, mark_at = True, residual, it
+            displacement = _displacement(kernels, precise)
             yx, yy, t = qx, qy, 1.0  # restart the momentum in double precision
     ux, uy = kernels.tangential_displacement(qx, qy, precise=precise)
     mag = np.hypot(qx, qy)

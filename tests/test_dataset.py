@@ -245,3 +245,25 @@ def test_preview_writes_a_contact_sheet(tmp_path):
     assert result.exit_code == 0 and "12 frames" in result.output
     sheet = cv2.imread(str(tmp_path / "p.png"))
     assert sheet.shape == (2 * 160, 6 * 160, 3)
+
+
+def test_info_prints_the_pose_convention(runs):
+    result = runner.invoke(app, ["info", str(runs[0])])
+    assert result.exit_code == 0
+    assert "pose: +x right, +y up in the frame, z negative into the gel, theta counter-clockwise" in result.output
+    assert "imported from" not in result.output  # a collected run: nothing was converted
+
+
+def test_export_states_the_pose_convention_import_requires(tmp_path):
+    import json
+
+    from dataset.pose_convention import POSE_CONVENTION
+
+    src = make_run(tmp_path / "src.h5", n=3)
+    runner.invoke(app, ["export", str(src), "--out", str(tmp_path / "folder")])
+    meta = json.loads((tmp_path / "folder" / "run.json").read_text())
+    assert meta["pose_convention"] == POSE_CONVENTION and meta["sensor"] == "rgb"
+    del meta["pose_convention"]
+    (tmp_path / "folder" / "run.json").write_text(json.dumps(meta))
+    result = runner.invoke(app, ["import", str(tmp_path / "folder"), "--out", str(tmp_path / "back.h5")])
+    assert result.exit_code == 1 and "[pose_convention] missing" in result.output

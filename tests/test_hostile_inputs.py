@@ -32,6 +32,7 @@ from cli.dataset_app import app as dataset_app
 from cli.rig_app import app as rig_app
 from common.errors import ConfigError
 from dataset.interchange import import_run
+from dataset.pose_convention import POSE_CONVENTION
 from dataset.split import SplitError, make_split, parse_ratios
 from protocols.plan import MAX_FRAMES, MAX_LEVELS, MAX_STEPS, Plan
 from protocols.spec import load_protocol, parse_protocol
@@ -317,7 +318,17 @@ def import_folder(root: Path, rows: int = 2, meta: dict | None = None) -> Path:
     cv2.imwrite(str(folder / "object.png"), np.full((8, 8, 3), 200, np.uint8))
     write_table(folder, table)
     (folder / "run.json").write_text(
-        json.dumps(meta if meta is not None else {"mm_per_px": 0.0634, "object": "sphere10mm", "capture_hz": 1.0})
+        json.dumps(
+            meta
+            if meta is not None
+            else {
+                "mm_per_px": 0.0634,
+                "object": "sphere10mm",
+                "capture_hz": 1.0,
+                "sensor": "rgb",
+                "pose_convention": POSE_CONVENTION,
+            }
+        )
     )
     return folder
 

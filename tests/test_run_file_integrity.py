@@ -515,3 +515,22 @@ def test_disk_full_mid_run_stops_retracts_and_resume_completes(quick, tmp_path, 
         assert all(img.max() > 8 for img in f[S.FRAMES][:])
     result, _ = run(quick, out, resume=True)
     assert result.status == "complete" and validate(out) == []
+
+
+def test_optional_attributes_are_checked_when_present(tmp_path):
+    """A run may lack the optional attributes (older files); when one is there, its kind is checked."""
+    import h5py
+
+    from acquisition import schema as S
+    from acquisition.run_layout import attr_problems
+
+    path = tmp_path / "a.h5"
+    with h5py.File(path, "w") as f:
+        for name, kind in S.ATTRS:
+            f.attrs[name] = {"str": "x", "float": 1.0, "int": 1, "float[4]": [0.0] * 4, "str[]": ["a"]}[kind]
+    with h5py.File(path, "r") as f:
+        assert attr_problems(f) == {}
+    with h5py.File(path, "a") as f:
+        f.attrs[S.OPTIONAL_ATTRS[0][0]] = [1, 2, 3]  # a list of numbers where text belongs
+    with h5py.File(path, "r") as f:
+        assert attr_problems(f) == {S.OPTIONAL_ATTRS[0][0]: "is int64 array of shape (3,), expected text"}

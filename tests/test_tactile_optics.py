@@ -277,3 +277,21 @@ def test_profile_refuses_bad_values_with_one_line(tmp_path, edit, message):
     with pytest.raises(ProfileError, match=message) as info:
         load_profile(path)
     assert str(path) in str(info.value) and "\n" not in str(info.value)
+
+
+def test_colour_lookup_is_the_same_float32_result_as_the_stacked_bilinear_table():
+    """``LightModel.change`` gathers per corner for speed; it must equal the plain
+    formula (stack the four corners, weight, sum) bit for bit, shading included."""
+    from sensor_sim.light import normal_lookup
+
+    light = default_profile().light
+    rng = np.random.default_rng(7)
+    gx, gy = (rng.normal(0, 0.4, (96, 80)).astype(np.float32) for _ in range(2))
+    gx[:20], gy[:20] = 0.0, 0.0  # the flat gel too
+    background = rng.uniform(30, 240, (96, 80, 3)).astype(np.float32)
+    idx, w = normal_lookup(gx, gy, light.bins)
+    flat = light.table_bgr.reshape(3, -1)
+    expected = np.stack([(flat[ch][idx] * w).sum(axis=-1) for ch in range(3)], axis=-1)
+    if light.shading == "multiplicative":
+        expected *= background / np.asarray(light.reference_bgr, dtype=np.float32)
+    assert np.array_equal(light.change(gx, gy, background), expected)

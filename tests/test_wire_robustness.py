@@ -275,3 +275,33 @@ def test_dropped_simulated_reply_times_out_on_simulated_time(world, manual_clock
         bus.read_holding(1, reg.COMMAND_POS_HIGH, 2, device="theta")
     assert manual_clock.now() - t_sim == pytest.approx(3 * 0.3)  # three tries, each a device timeout
     bus.close()
+
+
+def test_on_a_discrete_clock_every_advance_ends_with_a_sample_at_the_new_time():
+    from rig.sim.stream_clock import SampleSchedule
+
+    schedule = SampleSchedule(10.0, report_on_advance=True)
+    schedule.start(0.05)
+    assert schedule.due(0.05) == [0.05]
+    times = schedule.due(1.0)
+    assert times[:-1] == pytest.approx([0.15 + 0.1 * i for i in range(9)]) and times[-1] == 1.0
+    assert schedule.due(1.0) == []  # time stood still: nothing new
+    assert schedule.due(1.02) == [1.02]  # a short advance still reports its own instant
+
+
+def test_the_ft300_stream_costs_one_contact_solve_per_clock_advance(world, manual_clock):
+    """A whole second of the 100 Hz stream is one solve at the new time, the samples
+    before it interpolated; its bytes are still every frame the driver parses."""
+    from rig.drivers import ft300 as ft
+    from rig.sim.ft300_sim import Ft300Sim
+
+    calls = []
+    wrench = world.contact.wrench
+    world.contact.wrench = lambda pose: calls.append(pose) or wrench(pose)
+    sim = Ft300Sim(world, rate_hz=100.0, streaming=True)
+    sim.schedule.report_on_advance = True
+    assert len(sim.tick(manual_clock.now())) == 1 and len(calls) == 1
+    manual_clock.advance(1.0)
+    frames = sim.tick(manual_clock.now())
+    assert len(frames) == 100 and len(calls) == 2  # 0.01 .. 1.00 s: one solve
+    assert all(len(f) == len(ft.encode_stream_frame([0.0] * 6)) for f in frames)

@@ -8,6 +8,7 @@ contact model has no fields (the spring placeholder) shows the no-contact frame.
 
 from __future__ import annotations
 
+import dataclasses
 import socket
 import threading
 
@@ -33,7 +34,10 @@ class SimCameraSource:
         noise_std: float = 1.0,
         seed: int = 0,
         triggered: bool = False,
+        profile=None,
     ):
+        """``profile`` (a SensorProfile): its optics, background, noise and markers; None: the
+        shipped default's optics with ``noise_std``."""
         if height != width:
             raise ValueError(
                 f"the simulated camera renders a square gel pad: width ({width}) must equal height ({height})"
@@ -43,9 +47,12 @@ class SimCameraSource:
         self.period_s = 1.0 / fps
         solver = getattr(world.contact, "solver", None)
         geometry = solver.geometry if solver is not None else None
-        self.renderer = Renderer(
-            OpticsSpec(kind=kind, height_px=height, width_px=width, noise_std=noise_std), geometry, seed=seed
+        spec = (
+            OpticsSpec(kind=kind, height_px=height, width_px=width, noise_std=noise_std)
+            if profile is None
+            else dataclasses.replace(profile.optics_spec(kind), height_px=height, width_px=width)
         )
+        self.renderer = Renderer(spec, geometry, seed=seed, profile=profile)
         self._next_t: float | None = None
         self._released = False
         self.triggered = triggered  # render only when the Camera is triggered (acquisition)

@@ -111,15 +111,20 @@ class SimServer:
 
     def _run(self) -> None:
         while not self._stop.is_set():
-            interval = self.model.tick_interval_s()
+            # A discrete clock pumps the model on every advance (``pump``, a clock listener):
+            # between advances nothing is due, so this thread only waits for the host's bytes
+            # instead of waking every tick to find nothing to send.
+            interval = None if self._discrete else self.model.tick_interval_s()
             timeout = 0.05 if interval is None else interval
-            if self._pending:
+            if self._pending and not self._discrete:
                 timeout = min(timeout, self._real_s_until(self._pending[0][0]))
             fd = self._input_fd()
             try:
                 readable, _, _ = select.select([fd], [], [], timeout)
             except (OSError, ValueError):
                 return  # closed under us: the device "vanished"
+            if not readable and self._discrete:
+                continue  # nothing came and the clock stood still: nothing can be due
             if readable:
                 if self.transport == "tcp" and fd is self._listen:
                     self._conn, _ = self._listen.accept()

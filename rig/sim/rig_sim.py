@@ -9,6 +9,7 @@ exactly as they would open hardware.
 
 from __future__ import annotations
 
+from objects.object_file import is_object_file, load_object_file
 from rig.clock import Clock, SystemClock
 from rig.config import RigConfig, parse_config
 from rig.config.registry import kind, load
@@ -19,7 +20,7 @@ from rig.sim.pr_drive_sim import PrDriveSim
 from rig.sim.served import ServedDevice
 from rig.sim.world import SimWorld, WorldSpec
 from rig.sim.zaber_sim import ZaberChainSim, ZaberDeviceSim
-from sensor_sim.world_contact import rig_contact
+from sensor_sim.world_contact import ElastomerContact, rig_contact
 
 ZABER_MICROSTEP_MM = 0.047625e-3  # a common Zaber linear-stage microstep
 THETA_PULSES_PER_REV = 10000
@@ -33,7 +34,8 @@ DEVICE_TIMEOUT_S = 0.3
 # What `rig sim serve` writes instead: its clients wait in real time, writes included, and on a
 # loaded 2-core machine a 0.3 s write timeout was seen to trip mid-run against a served rig.
 SERVED_DEVICE_TIMEOUT_S = 1.0
-CAMERA_SIZE_PX = 256  # the simulated camera renders a square gel pad
+CAMERA_SIZE_PX = 256  # the simulated camera renders a square gel pad (a profile sets its own)
+RIG_CELLS = 96  # mechanics cells across the pad, as rig_contact (sensor_sim/world_contact.py)
 
 
 class SimulatedRig:
@@ -49,13 +51,30 @@ class SimulatedRig:
         sensor_kind: str = "rgb",
         contact=None,
         gauge_rate_hz: float = 100.0,
+        profile=None,
     ):
+        """``profile``: a ``sensor_sim.profile.SensorProfile`` for the gel (thickness, modulus,
+        field of view) and the camera (optics, background, noise, frame size); None: the
+        shipped default. Its frame must be square (the simulated camera renders a square pad)."""
         gauge_row = kind("gauge", gauge, path="<built-in simulated rig>", key="gauge")
         if gauge_row.simulator is None:
             raise ValueError(f"gauge kind {gauge!r} has no simulator in its registry row")
         self.clock = clock or SystemClock()
+        if profile is not None and profile.width_px != profile.height_px:
+            raise ValueError(
+                f"sensor profile {profile.path or profile.name}: the simulated camera renders a square pad, "
+                f"the profile's frame is {profile.width_px}x{profile.height_px}"
+            )
+        self.profile = profile
+        self.camera_px = CAMERA_SIZE_PX if profile is None else profile.width_px
         if contact is None:
-            contact = rig_contact(indenter)
+            # an object file without a height map: NoHeightMap, one line, before anything opens
+            shape = load_object_file(indenter).indenter() if is_object_file(indenter) else indenter
+            contact = (
+                rig_contact(shape)
+                if profile is None
+                else ElastomerContact(shape, profile.gel(), profile.geometry(cells=RIG_CELLS))
+            )
         self.world = SimWorld(self.clock, spec, contact=contact, seed=seed)
         self.sensor_kind = sensor_kind
         self.triggered_camera = False  # acquisition sets it: frames only on capture
@@ -137,10 +156,10 @@ class SimulatedRig:
                 if served
                 else ["[camera]", 'driver = "sim"']
             )
-            lines += [f"width = {CAMERA_SIZE_PX}", f"height = {CAMERA_SIZE_PX}", "fps = 25.0", "discard_frames = 2"]
+            lines += [f"width = {self.camera_px}", f"height = {self.camera_px}", "fps = 25.0", "discard_frames = 2"]
             solver = getattr(self.world.contact, "solver", None)
             if solver is not None:  # the rendered pad's calibration, stored in every run file
-                lines.append(f"mm_per_px = {solver.geometry.width_mm / CAMERA_SIZE_PX!r}")
+                lines.append(f"mm_per_px = {solver.geometry.width_mm / self.camera_px!r}")
             lines.append("")
         lines += ["[safety]", "max_force_N = [10.0, 10.0, 40.0]", "max_torque_Nmm = [300.0, 300.0, 200.0]", ""]
         return "\n".join(lines)
@@ -159,6 +178,7 @@ class SimulatedRig:
             width=width,
             kind=self.sensor_kind,
             triggered=triggered or self.triggered_camera,
+            profile=self.profile,
         )
 
     @property
@@ -170,7 +190,7 @@ class SimulatedRig:
         """Serve the camera on a loopback TCP port; ``config_toml()`` then names it (driver
         "stream"), so another process (`rig sim serve`'s clients) reads frames like a device."""
         if self.camera_server is None:
-            source = self.camera_source(height=CAMERA_SIZE_PX, width=CAMERA_SIZE_PX, triggered=True)
+            source = self.camera_source(height=self.camera_px, width=self.camera_px, triggered=True)
             self.camera_server = CameraStreamServer(source)
         return self.camera_server
 

@@ -16,7 +16,9 @@ class SampleSchedule:
         self.period_s = 1.0 / rate_hz
         self.max_backlog = max_backlog
         # On a discrete-event (manual) clock a sample is also reported at every advance
-        # of time, so that "a sample from now" exists whenever time stands still.
+        # of time, so that "a sample from now" exists whenever time stands still: the
+        # last sample of an advance is at the new time itself, and the world's one solve
+        # of the advance is the state every reader of that instant (the camera) shares.
         self.report_on_advance = report_on_advance
         self.next_t: float | None = None
         self._last_t: float | None = None
@@ -36,7 +38,8 @@ class SampleSchedule:
         while self.next_t <= now_s:
             times.append(self.next_t)
             self.next_t += self.period_s
-        if not times and self.report_on_advance and self._last_t is not None and now_s > self._last_t:
+        last = times[-1] if times else self._last_t
+        if self.report_on_advance and last is not None and now_s > last:
             times.append(now_s)
         if times:
             self._last_t = times[-1]

@@ -64,6 +64,9 @@ class SimWorld:
         self._last_true: tuple[float, np.ndarray] | None = None
         self.stages = {name: SimStage(name, self.spec.stages[name], position=self.spec.start[name]) for name in AXES}
         self._rng = np.random.default_rng(seed)
+        # True: every gauge sample is solved at its own time instead of interpolated between
+        # one solve per tick (the reference path bench/sim_run_bench.py measures against).
+        self.solve_every_sample = False
 
     def pose(self, t_s: float | None = None) -> Pose:
         t = self.clock.now() if t_s is None else t_s
@@ -86,10 +89,16 @@ class SimWorld:
 
         The load is solved at the last time and interpolated from the previous call's
         last sample for the earlier ones: a stream of thousands of samples a second
-        costs one contact solve per simulator tick. Noise is drawn per sample.
+        costs one contact solve per simulator tick (on the discrete-event clock, one per
+        advance, whose last sample is at the new time itself). Noise is drawn per sample.
         """
         if not times:
             return np.zeros((0, 6))
+        if self.solve_every_sample:
+            out = np.array([self.true_wrench(t) for t in times])
+            self._last_true = (times[-1], out[-1])
+            noise = self._rng.normal(0.0, 1.0, (len(times), 6)) * np.asarray(self.spec.gauge_noise)
+            return out + np.asarray(self.spec.gauge_offset) + noise
         t_end = times[-1]
         end = self.true_wrench(t_end)
         start_t, start = self._last_true if self._last_true is not None else (t_end, end)

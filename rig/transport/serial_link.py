@@ -8,6 +8,8 @@ simulator, reply timeouts follow the simulator's time (``rig.transport.peer``).
 
 from __future__ import annotations
 
+import os
+import select
 import socket
 import threading
 from typing import Callable
@@ -63,9 +65,44 @@ class TrackedPort:
         return data
 
     def write(self, data: bytes) -> int:
-        n = self._port.write(data)
-        object.__setattr__(self, "bytes_written", self.bytes_written + len(data))
+        """Send all of ``data``; SerialTimeoutException only when the line stays blocked with
+        bytes unsent past the write timeout.
+
+        pyserial checks its write deadline after each successful send, so a process
+        descheduled past the deadline (a loaded machine) is told "Write timeout" for bytes
+        that went out. Here the deadline counts only while bytes are still waiting; ports
+        without a file descriptor or socket (``loop://``) use pyserial's own write.
+        """
+        fd = self._raw_fd()
+        if fd is None:
+            n = self._port.write(data)
+        else:
+            n = self._send_all(fd, memoryview(bytes(data)))
+        object.__setattr__(self, "bytes_written", self.bytes_written + n)
         return n
+
+    def _raw_fd(self) -> int | None:
+        sock = getattr(self._port, "_socket", None)
+        if sock is not None:
+            return sock.fileno()
+        fd = getattr(self._port, "fd", None)
+        return fd if isinstance(fd, int) else None
+
+    def _send_all(self, fd: int, view: memoryview) -> int:
+        timeout_s = self._port.write_timeout
+        deadline = None if timeout_s is None else _REAL.now() + timeout_s
+        sent = 0
+        while sent < len(view):
+            try:
+                sent += os.write(fd, view[sent:])
+                continue
+            except (BlockingIOError, InterruptedError):
+                pass  # the line is full (or a signal came): wait until it takes more
+            left = None if deadline is None else deadline - _REAL.now()
+            if left is not None and left <= 0:
+                raise serial.SerialTimeoutException(f"Write timeout ({sent} of {len(view)} bytes sent)")
+            select.select([], [fd], [], left)
+        return sent
 
     def flush(self) -> None:
         retry_eintr(self._port.flush)

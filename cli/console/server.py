@@ -1,0 +1,324 @@
+"""The console's web app (Starlette, served by uvicorn) and ``serve``, which runs it.
+
+Routes: ``/`` the page, ``/static/…`` its files, ``/ws`` the live link (state, frames, events
+out; commands and frame acks in), ``/api/info``, ``/api/stats`` (frames drawn, latency),
+``/api/runs``, ``/api/run`` and ``/api/run/image`` (the run browser).
+
+Bound to 127.0.0.1 by default. On any other address every request needs the access token
+printed at start (``?token=`` once, then a cookie); WebSockets from another origin are refused
+either way, so a web page elsewhere cannot drive the rig through the browser.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import hmac
+import json
+import secrets
+import socket
+import sys
+from dataclasses import dataclass, field
+from http.cookies import SimpleCookie
+from pathlib import Path
+from urllib.parse import parse_qs, urlsplit
+
+from starlette.applications import Starlette
+from starlette.requests import Request
+from starlette.responses import FileResponse, JSONResponse, Response
+from starlette.routing import Mount, Route, WebSocketRoute
+from starlette.staticfiles import StaticFiles
+from starlette.websockets import WebSocket, WebSocketDisconnect
+
+from cli.console.hub import Client, Hub
+from cli.console.runs import RunLibrary, run_image, run_series
+from cli.console.worker import Command, RigWorker
+from common.errors import ToolError
+
+STATIC = Path(__file__).parent / "static"
+LOOPBACK = ("127.0.0.1", "localhost", "::1")
+COOKIE = "rig_console_token"
+MAX_STEP = 25.0  # mm or deg per jog from the page: the step selector's largest is 1
+
+
+@dataclass
+class ConsoleOptions:
+    """What the console serves: the rig (None: the run browser only) and which run files."""
+
+    worker: RigWorker | None
+    library: RunLibrary
+    token: str | None = None  # required on every request when set
+    open_run: str | None = None  # the run the page opens first (`dataset view RUN.h5`)
+    hub: Hub = field(init=False)
+
+    def __post_init__(self):
+        self.hub = Hub(self.worker.now if self.worker else (lambda: float("nan")))
+
+
+class TokenGate:
+    """ASGI middleware: with a token, every HTTP request and WebSocket must carry it (query
+    ``token=`` or the cookie set from it); a good query token sets the cookie."""
+
+    def __init__(self, app, token: str | None):
+        self.app = app
+        self.token = token
+
+    def _given(self, scope) -> tuple[str, bool]:
+        query = parse_qs(scope.get("query_string", b"").decode())
+        if "token" in query:
+            return query["token"][0], True
+        cookies = SimpleCookie()
+        for name, value in scope.get("headers", []):
+            if name == b"cookie":
+                cookies.load(value.decode("latin-1"))
+        return (cookies[COOKIE].value if COOKIE in cookies else ""), False
+
+    async def __call__(self, scope, receive, send):
+        if scope["type"] not in ("http", "websocket") or self.token is None:
+            return await self.app(scope, receive, send)
+        given, from_query = self._given(scope)
+        if not hmac.compare_digest(given.encode(), self.token.encode()):
+            if scope["type"] == "websocket":
+                await send({"type": "websocket.close", "code": 1008})
+                return
+            response = Response("access token required: open the URL `rig console` printed\n", status_code=403)
+            return await response(scope, receive, send)
+        if not from_query or scope["type"] != "http":
+            return await self.app(scope, receive, send)
+
+        async def send_with_cookie(message):
+            if message["type"] == "http.response.start":
+                headers = list(message.get("headers", []))
+                headers.append((b"set-cookie", f"{COOKIE}={self.token}; HttpOnly; SameSite=Strict; Path=/".encode()))
+                message = {**message, "headers": headers}
+            await send(message)
+
+        return await self.app(scope, receive, send_with_cookie)
+
+
+def _same_origin(websocket: WebSocket) -> bool:
+    origin = websocket.headers.get("origin")
+    return origin is None or urlsplit(origin).netloc == websocket.headers.get("host")
+
+
+def build_app(options: ConsoleOptions) -> Starlette:
+    hub, worker, library = options.hub, options.worker, options.library
+
+    @contextlib.asynccontextmanager
+    async def lifespan(_app):
+        if worker is not None:
+            loop = asyncio.get_running_loop()
+            worker.connect(
+                on_state=lambda state: loop.call_soon_threadsafe(hub.on_state, state),
+                on_frame=lambda frame: loop.call_soon_threadsafe(hub.on_frame, frame),
+                on_event=lambda level, text: loop.call_soon_threadsafe(hub.on_event, level, text),
+            )
+            worker.start()
+        try:
+            yield
+        finally:
+            if worker is not None:
+                await asyncio.to_thread(worker.close)
+
+    async def index(_request: Request) -> Response:
+        return FileResponse(STATIC / "index.html", headers={"cache-control": "no-store"})
+
+    async def info(_request: Request) -> Response:
+        rig = worker.rig if worker is not None else None
+        return JSONResponse(
+            {
+                "live": worker is not None,
+                "rig_error": worker.error if worker is not None else None,
+                "axes": list(rig.axes) if rig is not None else [],
+                "components": ["Fx", "Fy", "Fz", "Mx", "My", "Mz"],
+                "open_run": options.open_run,
+            }
+        )
+
+    async def stats(_request: Request) -> Response:
+        return JSONResponse(hub.stats())
+
+    async def runs(_request: Request) -> Response:
+        listing = await asyncio.to_thread(library.listing)
+        return JSONResponse(
+            [{"name": name, "bytes": path.stat().st_size} for name, path in listing.items() if path.exists()]
+        )
+
+    async def run(request: Request) -> Response:
+        try:
+            path = library.path(request.query_params.get("name", ""))
+            return JSONResponse(await asyncio.to_thread(run_series, path))
+        except ToolError as exc:
+            return JSONResponse({"error": str(exc)}, status_code=404)
+
+    async def image(request: Request) -> Response:
+        import cv2
+
+        try:
+            path = library.path(request.query_params.get("name", ""))
+            index = int(request.query_params.get("i", "0"))
+            picture = await asyncio.to_thread(run_image, path, request.query_params.get("kind", "frame"), index)
+        except (ToolError, ValueError) as exc:
+            return JSONResponse({"error": str(exc)}, status_code=404)
+        ok, buffer = cv2.imencode(".png", picture)
+        return Response(buffer.tobytes(), media_type="image/png", headers={"cache-control": "no-store"})
+
+    async def live(websocket: WebSocket) -> None:
+        if not _same_origin(websocket):
+            await websocket.close(code=1008)
+            return
+        await websocket.accept()
+        peer = f"{websocket.client.host}:{websocket.client.port}" if websocket.client else "?"
+        client = Client(websocket.send_text, websocket.send_bytes, peer)
+        hub.join(client)
+        if worker is not None:
+            hub.tell(client, {"type": "history", "wrench": worker.history()})
+        pump = asyncio.create_task(_pump(hub, client))
+        try:
+            while True:
+                message = json.loads(await websocket.receive_text())
+                _handle(hub, worker, client, message)
+        except (WebSocketDisconnect, json.JSONDecodeError, RuntimeError):
+            pass
+        finally:
+            hub.leave(client)
+            pump.cancel()
+
+    app = Starlette(
+        routes=[
+            Route("/", index),
+            Route("/api/info", info),
+            Route("/api/stats", stats),
+            Route("/api/runs", runs),
+            Route("/api/run", run),
+            Route("/api/run/image", image),
+            WebSocketRoute("/ws", live),
+            Mount("/static", StaticFiles(directory=STATIC), name="static"),
+        ],
+        lifespan=lifespan,
+    )
+    app.add_middleware(TokenGate, token=options.token)
+    return app
+
+
+async def _pump(hub: Hub, client: Client) -> None:
+    """Deliver to one browser until it goes away (the receiving side then ends too)."""
+    try:
+        await hub.pump(client)
+    except (WebSocketDisconnect, RuntimeError, ConnectionError):
+        pass  # the browser closed or the server is stopping: nothing left to deliver
+
+
+def _handle(hub: Hub, worker: RigWorker | None, client: Client, message: dict) -> None:
+    """One message from a browser."""
+    kind = message.get("type")
+    if kind == "drawn":
+        hub.frame_drawn(client, _number(message.get("t_s")))
+        return
+    if kind == "take_control":
+        refused = hub.take_control(client)
+        if refused:
+            hub.tell(client, {"type": "refused", "text": refused})
+        return
+    if kind == "release_control":
+        hub.release_control(client)
+        return
+    if worker is None:
+        hub.tell(client, {"type": "refused", "text": "no rig: this console only browses run files"})
+        return
+    if kind == "stop":  # from anyone: whoever watches may halt the rig
+        worker.submit(Command("stop", who=client.peer))
+        return
+    if kind not in ("jog", "home", "zero"):
+        hub.tell(client, {"type": "refused", "text": f"unknown command {kind!r}"})
+        return
+    if hub.controller is not client:
+        holder = hub.controller.peer if hub.controller else "nobody"
+        hub.tell(client, {"type": "refused", "text": f"{kind} refused: take control first (held by {holder})"})
+        return
+    axis = message.get("axis") or None
+    step = _number(message.get("step"))
+    if kind == "jog":
+        if not abs(step) <= MAX_STEP:
+            hub.tell(
+                client, {"type": "refused", "text": f"jog refused: step {message.get('step')!r} is not in ±{MAX_STEP}"}
+            )
+            return
+    worker.submit(Command(kind, axis=axis, step=step if kind == "jog" else None, who=client.peer))
+
+
+def _number(value) -> float:
+    """A number from a browser's message; NaN when it is not one (refused further on)."""
+    try:
+        return float(value)
+    except (TypeError, ValueError):
+        return float("nan")
+
+
+def bind(host: str, port: int) -> socket.socket:
+    """A listening socket (port 0: any free one); raises OSError naming the address."""
+    family = socket.AF_INET6 if ":" in host else socket.AF_INET
+    sock = socket.socket(family, socket.SOCK_STREAM)
+    sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+    try:
+        sock.bind((host, port))
+    except OSError as exc:
+        sock.close()
+        raise OSError(f"cannot listen on {host}:{port}: {exc.strerror}") from None
+    sock.listen(64)
+    sock.set_inheritable(True)
+    return sock
+
+
+def url_of(sock: socket.socket, host: str, token: str | None, path: str = "/") -> str:
+    port = sock.getsockname()[1]
+    shown = "127.0.0.1" if host in ("0.0.0.0", "") else (f"[{host}]" if ":" in host else host)
+    return f"http://{shown}:{port}{path}" + (f"?token={token}" if token else "")
+
+
+def make_token(host: str) -> str | None:
+    """None on loopback; elsewhere a fresh 128-bit token."""
+    return None if host in LOOPBACK else secrets.token_urlsafe(16)
+
+
+def serve(options: ConsoleOptions, sock: socket.socket, *, log_level: str = "warning") -> None:
+    """Run the console on ``sock`` until Ctrl-C (uvicorn's signal handling; the worker then
+    stops any move and closes the rig)."""
+    import uvicorn
+
+    config = uvicorn.Config(build_app(options), log_level=log_level, ws="websockets-sansio", lifespan="on")
+    server = uvicorn.Server(config)
+    server.run(sockets=[sock])
+    sys.stdout.flush()
+
+
+@contextlib.contextmanager
+def serving_in_thread(
+    options: ConsoleOptions, host: str = "127.0.0.1", port: int = 0, *, start_timeout_s: float = 60.0
+):
+    """Run the console in a background thread (tests, the benchmark); yields its URL. The
+    rig worker is started by the app's lifespan and closed on the way out."""
+    import threading
+
+    import uvicorn
+
+    sock = bind(host, port)
+    server = uvicorn.Server(
+        uvicorn.Config(build_app(options), log_level="warning", ws="websockets-sansio", lifespan="on")
+    )
+    thread = threading.Thread(target=server.run, kwargs={"sockets": [sock]}, name="rig-console-server", daemon=True)
+    thread.start()
+    started = threading.Event()
+    try:
+        # uvicorn sets ``started`` from its loop; waiting on an event with a deadline, not sleeping
+        while not server.started and thread.is_alive() and not started.wait(0.02):
+            start_timeout_s -= 0.02
+            if start_timeout_s <= 0:
+                raise TimeoutError("the console server did not start")
+        if not server.started:
+            raise RuntimeError("the console server stopped while starting")
+        yield url_of(sock, host, options.token)
+    finally:
+        server.should_exit = True
+        thread.join(60.0)
+        sock.close()

@@ -1,0 +1,320 @@
+// rig console: the live rig over one WebSocket, and the run browser over plain HTTP.
+// No build step: plain browser JavaScript and the vendored uPlot (static/vendor, MIT).
+"use strict";
+
+const $ = (id) => document.getElementById(id);
+const COMPONENTS = ["Fx", "Fy", "Fz", "Mx", "My", "Mz"];
+const COLORS = ["#d62728", "#2ca02c", "#1f77b4", "#ff7f0e", "#9467bd", "#8c564b"];
+const PHASE_COLORS = ["#1f77b433", "#2ca02c33", "#ff7f0e33", "#9467bd33", "#8c564b33", "#e377c233", "#7f7f7f33"];
+const HISTORY_S = 60;
+
+// What tests and the benchmark read: the page's own view of the rig.
+const state = { frames: 0, frameIndex: -1, frameT: null, wrench: null, axes: {}, control: null, events: [], run: null };
+window.rigConsole = state;
+
+function chart(target, labels, unit, colors, hooks, xRange) {
+  const width = Math.max(320, target.clientWidth || 480);
+  const series = [{}].concat(labels.map((label, i) => ({ label, stroke: colors[i], width: 1.5 })));
+  return new uPlot(
+    {
+      width, height: 170, series, hooks: hooks || {},
+      scales: { x: xRange ? { time: false, range: () => xRange } : { time: false } },
+      axes: [{ label: "s" }, { label: unit, size: 60 }],
+      legend: { live: true },
+    },
+    [[]].concat(labels.map(() => [])),
+    target,
+  );
+}
+
+// ---- the live rig -------------------------------------------------------------------------
+const live = { ws: null, ref: null, wrench: [], forces: null, moments: null, limits: null, lastDraw: 0 };
+
+function connect() {
+  const ws = new WebSocket((location.protocol === "https:" ? "wss://" : "ws://") + location.host + "/ws");
+  ws.binaryType = "arraybuffer";
+  live.ws = ws;
+  ws.onopen = () => setPill($("link-status"), "live", "ok");
+  ws.onclose = () => { setPill($("link-status"), "disconnected: reload the page", "bad"); setControl(null); };
+  ws.onmessage = (event) => {
+    if (event.data instanceof ArrayBuffer) drawFrame(event.data);
+    else onMessage(JSON.parse(event.data));
+  };
+}
+
+function send(message) {
+  if (live.ws && live.ws.readyState === WebSocket.OPEN) live.ws.send(JSON.stringify(message));
+}
+state.send = send;
+state.liveFz = () => live.wrench.map((r) => r[3]);
+
+function setPill(el, text, cls) { el.textContent = text; el.className = "pill " + (cls || ""); }
+
+async function drawFrame(buffer) {
+  const n = new DataView(buffer).getUint32(0, true);
+  const header = JSON.parse(new TextDecoder().decode(new Uint8Array(buffer, 4, n)));
+  const bitmap = await createImageBitmap(new Blob([new Uint8Array(buffer, 4 + n)], { type: "image/jpeg" }));
+  const canvas = $("live-frame");
+  if (canvas.width !== header.width || canvas.height !== header.height) {
+    canvas.width = header.width; canvas.height = header.height;
+  }
+  const ctx = canvas.getContext("2d", { willReadFrequently: true });
+  ctx.drawImage(bitmap, 0, 0);
+  if (!live.ref || live.ref.width !== canvas.width) live.ref = ctx.getImageData(0, 0, canvas.width, canvas.height);
+  if ($("diff-view").checked) {
+    // |frame - reference| x 4 around mid-grey: what the contact changed.
+    const now = ctx.getImageData(0, 0, canvas.width, canvas.height);
+    const a = now.data, r = live.ref.data;
+    for (let i = 0; i < a.length; i += 4) {
+      for (let c = 0; c < 3; c++) a[i + c] = Math.min(255, 4 * Math.abs(a[i + c] - r[i + c]));
+    }
+    ctx.putImageData(now, 0, 0);
+  }
+  state.frames += 1;
+  state.frameIndex = header.index;
+  state.frameT = header.t_s;
+  canvas.dataset.index = String(header.index);
+  canvas.dataset.count = String(state.frames);
+  const t = performance.now();
+  const fps = live.lastDraw ? 1000 / (t - live.lastDraw) : 0;
+  live.lastDraw = t;
+  $("frame-info").textContent = `#${header.index} · ${header.width}×${header.height} · ${fps.toFixed(1)} fps`;
+  send({ type: "drawn", index: header.index, t_s: header.t_s });
+}
+
+function onMessage(m) {
+  if (m.type === "state") onState(m);
+  else if (m.type === "history") { live.wrench = m.wrench; plotWrench(); }
+  else if (m.type === "event") addEvent(m.level, `${m.at} ${m.text}`);
+  else if (m.type === "control") setControl(m);
+  else if (m.type === "refused") { $("control-msg").textContent = m.text; addEvent("warn", m.text); }
+}
+
+function addEvent(level, text) {
+  state.events.push(text);
+  const li = document.createElement("li");
+  li.className = level; li.textContent = text;
+  const list = $("events");
+  list.appendChild(li);
+  list.scrollTop = list.scrollHeight;
+}
+
+function setControl(m) {
+  state.control = m;
+  const mine = !!(m && m.you);
+  if (!m) setPill($("control-status"), "no control", "bad");
+  else if (mine) setPill($("control-status"), "you have control", "ok");
+  else if (m.holder) setPill($("control-status"), `controlled by ${m.holder} since ${m.since}`, "bad");
+  else setPill($("control-status"), "nobody has control", "");
+  document.querySelectorAll(".needs-control").forEach((b) => { b.disabled = !mine; });
+  if (mine) $("control-msg").textContent = "";
+}
+
+function onState(m) {
+  state.axes = m.axes;
+  live.limits = m.limits;
+  for (const row of m.wrench) live.wrench.push(row);
+  const last = live.wrench.length ? live.wrench[live.wrench.length - 1] : null;
+  if (last) {
+    while (live.wrench.length && live.wrench[0][0] < last[0] - HISTORY_S) live.wrench.shift();
+    state.wrench = last.slice(1);
+    $("wrench-now").textContent = COMPONENTS.map((c, i) => `${c} ${last[i + 1].toFixed(2)}`).join("  ");
+  }
+  if (m.limits) {
+    $("limits").textContent = "limits: " + COMPONENTS.map((c, i) => `|${c}| ≤ ${m.limits[i]}`).join(", ") +
+      " (N, N·mm)" + (m.activity ? ` — moving: ${m.activity}` : "");
+  }
+  renderAxes(m.axes);
+  plotWrench();
+}
+
+function renderAxes(axes) {
+  const body = document.querySelector("#axes tbody");
+  if (body.children.length !== Object.keys(axes).length) {
+    body.innerHTML = "";
+    const jog = $("jog");
+    jog.innerHTML = "";
+    for (const name of Object.keys(axes)) {
+      const tr = document.createElement("tr");
+      tr.id = `axis-${name}`;
+      tr.innerHTML = `<td>${name}</td><td class="pos"></td><td class="st"></td><td class="homed"></td><td class="travel"></td><td class="warn"></td>`;
+      body.appendChild(tr);
+      const minus = jogButton(name, -1), plus = jogButton(name, +1);
+      const label = document.createElement("span");
+      label.textContent = name;
+      const pos = document.createElement("span");
+      pos.id = `jog-${name}-pos`;
+      jog.append(label, minus, pos, plus);
+    }
+  }
+  for (const [name, a] of Object.entries(axes)) {
+    const tr = $(`axis-${name}`);
+    tr.className = a.state;
+    tr.querySelector(".pos").textContent = `${a.position.toFixed(4)} ${a.unit}`;
+    tr.querySelector(".st").textContent = a.state;
+    tr.querySelector(".homed").textContent = a.homed ? "yes" : "no";
+    tr.querySelector(".travel").textContent = `${a.travel[0]} … ${a.travel[1]}`;
+    tr.querySelector(".warn").textContent = a.warnings.join(" ");
+    $(`jog-${name}-pos`).textContent = a.position.toFixed(3);
+  }
+}
+
+function jogButton(axis, sign) {
+  const b = document.createElement("button");
+  b.type = "button";
+  b.id = `jog-${axis}-${sign > 0 ? "plus" : "minus"}`;
+  b.className = "needs-control";
+  b.textContent = `${axis}${sign > 0 ? "+" : "−"}`;
+  b.disabled = !(state.control && state.control.you);
+  b.onclick = () => jog(axis, sign);
+  return b;
+}
+
+function jog(axis, sign) { send({ type: "jog", axis, step: sign * parseFloat($("step").value) }); }
+
+function plotWrench() {
+  if (!live.forces) return;
+  const rows = live.wrench;
+  const t0 = rows.length ? rows[rows.length - 1][0] : 0;
+  const xs = rows.map((r) => r[0] - t0);
+  live.forces.setData([xs, ...[1, 2, 3].map((k) => rows.map((r) => r[k]))]);
+  live.moments.setData([xs, ...[4, 5, 6].map((k) => rows.map((r) => r[k]))]);
+}
+
+function setUpLive() {
+  $("live").hidden = false;
+  live.forces = chart($("live-forces"), COMPONENTS.slice(0, 3), "N", COLORS.slice(0, 3), {}, [-HISTORY_S, 0]);
+  live.moments = chart($("live-moments"), COMPONENTS.slice(3), "N·mm", COLORS.slice(3), {}, [-HISTORY_S, 0]);
+  $("take-control").onclick = () => send({ type: "take_control" });
+  $("release-control").onclick = () => send({ type: "release_control" });
+  $("stop").onclick = () => send({ type: "stop" });
+  $("zero").onclick = () => send({ type: "zero" });
+  $("home").onclick = () => send({ type: "home" });
+  $("set-reference").onclick = () => { live.ref = null; };
+  document.addEventListener("keydown", onKey);
+  connect();
+}
+
+const KEYS = {
+  ArrowLeft: ["x", -1], ArrowRight: ["x", 1], ArrowUp: ["y", 1], ArrowDown: ["y", -1],
+  PageUp: ["z", 1], PageDown: ["z", -1], "[": ["theta", -1], "]": ["theta", 1],
+};
+
+function onKey(e) {
+  if (e.target.tagName === "INPUT" || e.target.tagName === "SELECT") return;
+  if (e.key === "Escape" || e.key === " ") { send({ type: "stop" }); e.preventDefault(); return; }
+  if ("1234".includes(e.key) && e.key.length === 1) { $("step").selectedIndex = Number(e.key) - 1; return; }
+  const move = KEYS[e.key];
+  if (move && state.control && state.control.you) { jog(move[0], move[1]); e.preventDefault(); }
+}
+
+// ---- the run browser --------------------------------------------------------------------
+const browser = { name: null, run: null, charts: [], timer: null };
+
+async function listRuns(select) {
+  const runs = await (await fetch("api/runs")).json();
+  const sel = $("run-select");
+  const keep = select || sel.value;
+  sel.innerHTML = '<option value="">choose a run file…</option>';
+  for (const r of runs) {
+    const o = document.createElement("option");
+    o.value = r.name; o.textContent = `${r.name} (${(r.bytes / 1e6).toFixed(1)} MB)`;
+    sel.appendChild(o);
+  }
+  if (keep && runs.some((r) => r.name === keep)) { sel.value = keep; await openRun(keep); }
+}
+
+function phaseBands(u) {
+  const run = browser.run;
+  if (!run || !run.t_s.length) return;
+  const ctx = u.ctx, top = u.bbox.top, h = u.bbox.height;
+  let start = 0;
+  for (let i = 1; i <= run.t_s.length; i++) {
+    if (i === run.t_s.length || run.phase_index[i] !== run.phase_index[start]) {
+      // a phase's band runs from its first frame to the next phase's first frame
+      const end = i < run.t_s.length ? run.t_s[i] : run.t_s[i - 1];
+      const x0 = u.valToPos(run.t_s[start], "x", true), x1 = u.valToPos(end, "x", true);
+      const p = run.phase_index[start];
+      ctx.fillStyle = PHASE_COLORS[p % PHASE_COLORS.length];
+      ctx.fillRect(x0, top, Math.max(1, x1 - x0), h);
+      ctx.fillStyle = "#555";
+      ctx.font = `${10 * devicePixelRatio}px sans-serif`;
+      if (x1 - x0 > 30) ctx.fillText(run.phases[p] || "?", x0 + 3, top + 12 * devicePixelRatio);
+      start = i;
+    }
+  }
+}
+
+function frameMarker(u) {
+  const run = browser.run;
+  if (!run || !run.t_s.length) return;
+  const i = Number($("run-slider").value);
+  const x = u.valToPos(run.t_s[Math.min(i, run.t_s.length - 1)], "x", true);
+  u.ctx.strokeStyle = "#000"; u.ctx.lineWidth = 2 * devicePixelRatio;
+  u.ctx.beginPath(); u.ctx.moveTo(x, u.bbox.top); u.ctx.lineTo(x, u.bbox.top + u.bbox.height); u.ctx.stroke();
+}
+
+async function openRun(name) {
+  clearTimeout(browser.timer);
+  if (!name) { $("run-view").hidden = true; return; }
+  const response = await fetch("api/run?name=" + encodeURIComponent(name));
+  const run = await response.json();
+  if (run.error) { $("run-info").textContent = run.error; return; }
+  const fresh = browser.name !== name;
+  browser.name = name; browser.run = run; state.run = run;
+  $("run-view").hidden = false;
+  $("run-info").textContent = `${run.protocol} · ${run.object} · ${run.sensor} · ${run.frames}/${run.frames_planned} frames · ${run.status}` +
+    (run.reason ? ` (${run.reason})` : "") + ` · phases: ${run.phases.join(", ")}`;
+  const slider = $("run-slider");
+  const wasAtEnd = Number(slider.value) >= Number(slider.max);
+  slider.max = String(Math.max(0, run.frames - 1));
+  if (fresh) {
+    browser.charts.forEach((c) => c.destroy());
+    const hooks = { drawClear: [phaseBands], draw: [frameMarker] };
+    browser.charts = [
+      chart($("run-forces"), COMPONENTS.slice(0, 3), "N", COLORS.slice(0, 3), hooks),
+      chart($("run-moments"), COMPONENTS.slice(3), "N·mm", COLORS.slice(3), hooks),
+      chart($("run-pose"), ["x", "y", "z", "θ"], "mm, deg", ["#d62728", "#2ca02c", "#1f77b4", "#7f7f7f"], hooks),
+    ];
+    $("run-reference").src = run.has.reference ? `api/run/image?kind=reference&name=${encodeURIComponent(name)}` : "";
+    $("run-object").src = run.has.object ? `api/run/image?kind=object&name=${encodeURIComponent(name)}` : "";
+    slider.value = "0";
+  } else if (wasAtEnd) {
+    slider.value = slider.max;  // following a run being written: stay on its newest frame
+  }
+  const col = (rows, k) => rows.map((r) => r[k]);
+  browser.charts[0].setData([run.t_s, col(run.wrench, 0), col(run.wrench, 1), col(run.wrench, 2)]);
+  browser.charts[1].setData([run.t_s, col(run.wrench, 3), col(run.wrench, 4), col(run.wrench, 5)]);
+  browser.charts[2].setData([run.t_s, col(run.pose, 0), col(run.pose, 1), col(run.pose, 2), col(run.pose, 3)]);
+  showFrame(Number(slider.value));
+  if (run.status === "running") browser.timer = setTimeout(() => openRun(name), 2000);
+}
+
+function showFrame(i) {
+  const run = browser.run;
+  if (!run || !run.frames) return;
+  const img = $("run-frame");
+  img.onload = () => { img.dataset.index = String(i); };
+  img.src = `api/run/image?kind=frame&i=${i}&name=${encodeURIComponent(browser.name)}`;
+  const w = run.wrench[i], p = run.pose[i];
+  $("run-frame-label").textContent = `frame ${i} of ${run.frames} · t = ${run.t_s[i].toFixed(2)} s · ${run.phases[run.phase_index[i]] || "?"}`;
+  $("run-wrench").textContent = COMPONENTS.map((c, k) => `${c} ${w[k].toFixed(3)}`).join("  ") +
+    `   pose x ${p[0].toFixed(3)} y ${p[1].toFixed(3)} z ${p[2].toFixed(3)} θ ${p[3].toFixed(2)}`;
+  $("run-wrench").dataset.index = String(i);
+  browser.charts.forEach((c) => c.redraw(false));
+}
+
+function setUpBrowser(openName) {
+  $("run-select").onchange = (e) => openRun(e.target.value);
+  $("run-refresh").onclick = () => listRuns();
+  $("run-slider").oninput = (e) => showFrame(Number(e.target.value));
+  listRuns(openName);
+}
+
+(async function main() {
+  const info = await (await fetch("api/info")).json();
+  if (info.rig_error) { const e = $("rig-error"); e.hidden = false; e.textContent = info.rig_error; }
+  if (info.live) setUpLive();
+  else { setPill($("link-status"), "run browser only", ""); $("control-status").hidden = true; }
+  setUpBrowser(info.open_run);
+})();

@@ -1,0 +1,358 @@
+"""The one thread that owns the rig for the console.
+
+The devices are blocking (serial exchanges, a camera grabber), the web server is async: this
+thread opens the rig, takes commands from a queue and hands snapshots back through callbacks
+(the server wraps them in ``loop.call_soon_threadsafe``). Every move goes through the guarded
+motion session (rig/motion.py) exactly as ``rig jog`` does; a move is started and then
+monitored here, poll by poll, so that a stop command (or the console closing) stops it
+between two safety checks instead of after the move.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import queue
+import threading
+from collections import deque
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from common.errors import ToolError
+from rig.errors import DeviceTimeout, RigError
+
+log = logging.getLogger("rig.console")
+
+STATUS_EVERY_S = 0.1  # axis positions and states: 4 exchanges per 100 ms leave the links mostly free
+WRENCH_EVERY_S = 0.02  # the live trace keeps a sample per 20 ms: 3000 points for the last minute
+HISTORY_S = 60.0  # the last minute of the wrench trace
+IDLE_TICK_S = 0.01  # how long the idle loop waits for a command before looking for a new frame
+JPEG_QUALITY = 85  # a 256 px frame is ~10 kB: fine on any link, gel texture still visible
+TARE_SAMPLES = 50  # as `rig zero`
+
+
+@dataclass(frozen=True)
+class Command:
+    """What a browser asked for: ``jog`` (axis, step), ``stop``, ``home`` (axis or all), ``zero``."""
+
+    kind: str
+    axis: str | None = None
+    step: float | None = None
+    who: str = ""
+
+
+@dataclass(frozen=True)
+class FrameOut:
+    """One encoded camera frame for the browsers: index, capture time on the rig clock (s)."""
+
+    index: int
+    t_s: float
+    width: int
+    height: int
+    jpeg: bytes
+
+
+@contextlib.contextmanager
+def open_console_rig(config: Path | None, sim: bool) -> Iterator[tuple[Any, Any]]:
+    """Yield (rig, simulated rig or None): every configured device, the camera when configured.
+
+    Like ``cli.session.open_rig`` but without signal handlers (this runs outside the main
+    thread, where Python cannot install them; uvicorn's own handlers stop the server,
+    and closing the worker stops any move).
+    """
+    from cli.session import resolve_config_path
+    from rig.config import load_config
+    from rig.rig import Rig
+
+    if sim:
+        from rig.sim.rig_sim import SimulatedRig
+
+        with SimulatedRig() as simulated:
+            cfg = simulated.config()
+            with Rig.open(cfg, simulated.clock, camera=True, sim=simulated) as rig:
+                yield rig, simulated
+    else:
+        cfg = load_config(resolve_config_path(config))
+        with Rig.open(cfg, camera=cfg.camera is not None) as rig:
+            yield rig, None
+
+
+class RigWorker:
+    """Owns the rig in its own thread. ``submit`` commands; snapshots arrive through
+    ``on_state(dict)``, ``on_event(level, text)`` and ``on_frame(FrameOut)``, called from
+    this thread."""
+
+    def __init__(
+        self,
+        opener: Callable[[], contextlib.AbstractContextManager[tuple[Any, Any]]],
+        *,
+        on_state: Callable[[dict], object],
+        on_event: Callable[[str, str], object],
+        on_frame: Callable[[FrameOut], object],
+    ):
+        self._opener = opener
+        self.connect(on_state=on_state, on_event=on_event, on_frame=on_frame)
+        self._commands: queue.Queue[Command | None] = queue.Queue()
+        self._closing = threading.Event()
+        self.ready = threading.Event()  # set once the rig is open (or failed to open: see ``error``)
+        self.error: str | None = None
+        self.errors_seen = 0  # unexpected errors logged and survived (a bug or a broken device)
+        self.rig: Any = None
+        self._sim: Any = None
+        self._wrench: deque[list[float]] = deque()
+        self._new_wrench: list[list[float]] = []
+        self._last_wrench_t = -np.inf
+        self._last_status_t = -np.inf
+        self._axes: dict[str, dict] = {}
+        self.activity = ""  # what is moving now, for the page
+        self.frames_sent = 0
+        self._thread = threading.Thread(target=self._run, name="rig-console-worker", daemon=True)
+
+    # -- the server's side ----------------------------------------------------------------
+    def connect(
+        self,
+        *,
+        on_state: Callable[[dict], object],
+        on_event: Callable[[str, str], object],
+        on_frame: Callable[[FrameOut], object],
+    ) -> None:
+        """Where snapshots go (called from this worker's thread); set before ``start``."""
+        self._on_state = on_state
+        self._on_event = on_event
+        self._on_frame = on_frame
+
+    def start(self) -> None:
+        self._thread.start()
+
+    def submit(self, command: Command) -> None:
+        self._commands.put(command)
+
+    def close(self, timeout_s: float = 30.0) -> None:
+        """Stop any move, close the rig and end the thread (bounded wait)."""
+        self._closing.set()
+        self._commands.put(None)
+        if self._thread.is_alive():
+            self._thread.join(timeout_s)
+
+    def history(self) -> list[list[float]]:
+        """The last minute of [t_s, Fx, Fy, Fz, Mx, My, Mz] (copied; safe from any thread)."""
+        return list(self._wrench)
+
+    def now(self) -> float:
+        """The rig clock (s): frame times are on it."""
+        return self.rig.clock.now() if self.rig is not None else float("nan")
+
+    # -- the thread -----------------------------------------------------------------------
+    def _run(self) -> None:
+        try:
+            with self._opener() as (rig, sim):
+                self.rig, self._sim = rig, sim
+                self.ready.set()
+                self._on_event("info", f"rig open: {', '.join(rig.axes) or 'no axes'}; camera {self._camera_name()}")
+                self._loop()
+        except Exception as exc:  # opening failed, or closing did: the page says so
+            self.error = f"{type(exc).__name__}: {exc}" if not isinstance(exc, ToolError) else str(exc)
+            log.error("console rig: %s", self.error)
+            self._on_event("error", f"rig: {self.error}")
+        finally:
+            self.rig = None
+            self.ready.set()
+
+    def _camera_name(self) -> str:
+        return self.rig.camera.name if self.rig.camera is not None else "none"
+
+    def _loop(self) -> None:
+        while not self._closing.is_set():
+            self._io()
+            try:
+                command = self._commands.get(timeout=IDLE_TICK_S)
+            except queue.Empty:
+                continue
+            if command is None:
+                break
+            self._do(command)
+
+    def _do(self, command: Command) -> None:
+        try:
+            if command.kind == "jog":
+                self._jog(command)
+            elif command.kind == "home":
+                self._home(command)
+            elif command.kind == "zero":
+                bias = self.rig.tare(TARE_SAMPLES)
+                self._on_event("info", "gauge zeroed; bias " + ", ".join(f"{v:+.3f}" for v in bias))
+            elif command.kind == "stop":
+                self.rig.stop_all()  # nothing of ours is moving; stop anyway, it is what was asked
+                self._on_event("info", "stop: every axis stopped")
+            else:
+                self._on_event("warn", f"unknown command {command.kind!r}")
+        except ToolError as exc:  # a refused or failed move: the session already stopped and lifted
+            self._on_event("error", f"{command.kind} {command.axis or ''}: {exc}".replace("  ", " "))
+        except Exception as exc:
+            self.errors_seen += 1
+            log.exception("console %s failed", command.kind)
+            self._on_event("error", f"{command.kind}: {type(exc).__name__}: {exc}")
+        finally:
+            self.activity = ""
+            self._recover()
+            self._publish_state(force=True)
+
+    def _recover(self) -> None:
+        """After a failed session the camera is closed and the gauge stream stopped (the
+        safe state for a command that exits); the console lives on, so reopen both."""
+        rig = self.rig
+        cfg = rig.config
+        if rig.camera is None and cfg.camera is not None:
+            from rig.factory import open_camera
+
+            try:
+                rig.camera = open_camera(cfg.camera, rig.clock, self._sim)
+            except Exception as exc:
+                self.errors_seen += 1
+                self._on_event("error", f"camera could not be reopened: {exc}")
+        gauge = rig.gauge
+        if gauge is not None and cfg.gauge is not None and cfg.gauge.mode == "stream":
+            if not getattr(gauge, "streaming", True):
+                try:
+                    gauge.start_stream()
+                except Exception as exc:
+                    self.errors_seen += 1
+                    self._on_event("error", f"gauge stream could not be restarted: {exc}")
+
+    # -- moving -----------------------------------------------------------------------------
+    def _jog(self, command: Command) -> None:
+        rig = self.rig
+        axis, step = command.axis, command.step
+        if axis is None or axis not in rig.axes or step is None or not np.isfinite(step):
+            raise RigError(f"jog needs an open axis ({', '.join(rig.axes)}) and a finite step, got {axis!r} {step!r}")
+        cfg = rig.config.axes[axis]
+        here = rig.axes[axis].position()
+        last = rig.last_targets.get(axis)  # as `rig jog`: steps from the last target do not accumulate rounding
+        base = last if last is not None and abs(here - last) <= rig.tolerance(axis) else here
+        target = base + step
+        speeds = rig.check_targets({axis: target})  # refused before a session opens: nothing moves
+        self.activity = f"{axis} → {target:.4f} {cfg.unit}"
+        deadline = rig.clock.now() + 5.0 + 2.0 * abs(step) / speeds[axis]
+        with rig.motion("console jog") as m:
+            guard = m.start_move({axis: target})
+            self._on_event("info", f"{command.who or 'console'}: {axis} moving to {target:.4f} {cfg.unit}")
+            stopped = self._follow(m, (axis,), guard, deadline)
+        final = rig.axes[axis].position()
+        if stopped:
+            rig.last_targets.pop(axis, None)
+            self._on_event("warn", f"{axis} stopped at {final:.4f} {cfg.unit} ({stopped})")
+        else:
+            rig.last_targets[axis] = target
+            self._on_event("info", f"{axis} = {final:.4f} {cfg.unit}")
+
+    def _follow(self, m, names: tuple[str, ...], guard, deadline: float) -> str:
+        """Monitor a started move until it has settled; a stop command (or closing) stops
+        it at the next poll. Returns why it was stopped, "" when it ran to its end."""
+        stopped = ""
+        poll_s = self.rig.config.safety.poll_s
+        while True:
+            if not stopped and self._closing.is_set():
+                m.stop()
+                stopped = "console closing"
+            moving = m.monitor(names, guard, "console jog")
+            self._io()
+            if not moving and m.settled:
+                return stopped
+            if self.rig.clock.now() > deadline:
+                raise DeviceTimeout(", ".join(names), "console jog", None, "motion did not finish in time")
+            try:
+                command = self._commands.get(timeout=poll_s)
+            except queue.Empty:
+                continue
+            if command is None:
+                self._closing.set()
+            elif command.kind == "stop":
+                if not stopped:
+                    m.stop()
+                    stopped = f"stop from {command.who or 'the console'}"
+            else:
+                self._on_event("warn", f"{command.kind} refused: a move is in progress (stop it first)")
+
+    def _home(self, command: Command) -> None:
+        names = (command.axis,) if command.axis else None
+        self.activity = f"homing {command.axis or 'all axes'}"
+        self._publish_state(force=True)
+        with self.rig.motion("console home") as m:
+            m.home_axes(names)  # not interruptible from the page yet: Ctrl-C in the terminal is
+        self._on_event("info", f"homed {command.axis or 'all axes'}")
+
+    # -- reading ------------------------------------------------------------------------------
+    def _io(self) -> None:
+        """One round of reading: a new camera frame if there is one, the wrench, and (every
+        STATUS_EVERY_S) the axes; publish what changed."""
+        self._read_frame()
+        self._read_wrench()
+        self._publish_state()
+
+    def _read_frame(self) -> None:
+        camera = self.rig.camera
+        if camera is None:
+            return
+        try:
+            frame = camera.read(timeout_s=0.0)
+        except DeviceTimeout:
+            return  # no new frame since the last look
+        import cv2
+
+        ok, buffer = cv2.imencode(".jpg", frame.image, [cv2.IMWRITE_JPEG_QUALITY, JPEG_QUALITY])
+        if not ok:
+            self.errors_seen += 1
+            log.error("frame %d could not be encoded", frame.index)
+            return
+        height, width = frame.image.shape[:2]
+        self.frames_sent += 1
+        self._on_frame(FrameOut(frame.index, frame.t_s, width, height, buffer.tobytes()))
+
+    def _read_wrench(self) -> None:
+        if self.rig.gauge is None:
+            return
+        w = self.rig.gauge.read()
+        if w.t_s - self._last_wrench_t < WRENCH_EVERY_S:
+            return
+        self._last_wrench_t = w.t_s
+        row = [w.t_s, *w.as_array().tolist()]
+        self._wrench.append(row)
+        self._new_wrench.append(row)
+        while self._wrench and self._wrench[0][0] < w.t_s - HISTORY_S:
+            self._wrench.popleft()
+
+    def _publish_state(self, force: bool = False) -> None:
+        rig = self.rig
+        now = rig.clock.now()
+        if not force and now - self._last_status_t < STATUS_EVERY_S:
+            return
+        self._last_status_t = now
+        for name, axis in rig.axes.items():
+            cfg = rig.config.axes[name]
+            s = axis.status()
+            self._axes[name] = {
+                "position": s.position,
+                "unit": cfg.unit,
+                "state": s.state.value,
+                "homed": s.homed,
+                "warnings": list(s.warnings),
+                "travel": list(cfg.travel),
+            }
+        limits = rig.guard.limits.tolist() if rig.guard is not None else None
+        self._on_state(
+            {
+                "type": "state",
+                "t_s": now,
+                "axes": self._axes,
+                "wrench": self._new_wrench,
+                "limits": limits,
+                "activity": self.activity,
+                "errors_seen": self.errors_seen,
+                "frames_sent": self.frames_sent,
+            }
+        )
+        self._new_wrench = []

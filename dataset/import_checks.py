@@ -1,0 +1,248 @@
+"""The import folder's format and its checks: run.json key by key, frames.csv row by row.
+
+Everything here runs before a run file is created, so a refused import writes nothing. Each
+error names the file, the row and column (or the run.json key) and the value.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from acquisition import schema as S
+from acquisition.run_file import RunFileError
+from common.errors import ConfigError
+from common.sensors import SENSOR_KINDS
+from common.table import finite_number
+
+FIELDS = {f.path: f for f in S.PER_FRAME_FIELDS}
+WRENCH_COLS = S.columns_of(FIELDS[S.WRENCH])
+POSE_COLS = S.columns_of(FIELDS[S.POSE_MEASURED])
+CMD_COLS = S.columns_of(FIELDS[S.POSE_COMMANDED])
+LEADING = (S.T_FRAME, S.WRENCH, S.POSE_MEASURED)  # first in the CSV: what a person reads first
+REQUIRED = (S.WRENCH, S.POSE_MEASURED)  # an import without these columns has nothing to train on
+DERIVED = (S.CAPTURE_INDEX,)  # the imported file's own capture grid: 0, 1, 2, ... (never read)
+POSES = (S.POSE_MEASURED, S.POSE_COMMANDED)  # converted by the folder's pose_convention
+STREAM_CSV = "wrench_stream.csv"
+STREAM_COLS = ("t_s", *WRENCH_COLS)
+
+
+def csv_fields() -> list[S.Field]:
+    """The per-frame fields in frames.csv order: LEADING, then the rest of the table."""
+    return [FIELDS[p] for p in LEADING] + [f for f in S.PER_FRAME_FIELDS if f.path not in LEADING]
+
+
+# Bounds on imported numbers, each a reason away from any real tactile data: a NaN or a
+# typo caught here never reaches a training set.
+META_KEYS = ("mm_per_px", "object", "sensor", "protocol", "capture_hz", "status", "phases", "pose_convention")
+MM_PER_PX = (1e-4, 10.0)  # a GelSight Mini is 0.0634 mm/px at 320x240; beyond these no camera sees a gel
+CAPTURE_HZ = (0.01, 1000.0)  # one frame a 100 s up to a fast camera's frame rate
+POSE_LIMIT = 1e4  # mm or deg: 10 m of travel or ~28 turns; no lab stage goes further (as the rig config)
+FORCE_N = 1e4  # |F|: 10 kN is far past crushing any tactile gel
+TORQUE_NMM = 1e6  # |M|: 1 kN·m, likewise
+T_FRAME_S = 1e8  # s: three years of recording
+LEVEL = (0, 127)  # stored as int8 (acquisition/schema.py); 0 is "not at a depth level"
+# (low, high) per field (per column for the wrench); a field not listed (one added to the
+# table later) is checked finite and, for whole-number dtypes, whole and within its dtype
+BOUNDS: dict[str, Any] = {
+    S.WRENCH: [(-FORCE_N, FORCE_N)] * 3 + [(-TORQUE_NMM, TORQUE_NMM)] * 3,
+    S.POSE_MEASURED: (-POSE_LIMIT, POSE_LIMIT),
+    S.POSE_COMMANDED: (-POSE_LIMIT, POSE_LIMIT),
+    S.T_FRAME: (0.0, T_FRAME_S),
+    S.T_CAPTURE: (0.0, T_FRAME_S),
+    S.WRENCH_SKEW: (0.0, T_FRAME_S),
+    S.LEVEL: LEVEL,
+}
+
+
+def read_meta(folder: Path) -> dict:
+    """run.json checked key by key; ConfigError names the file, the key and the value."""
+    path = folder / "run.json"
+    if not path.exists():
+        return {}
+    try:
+        meta = json.loads(path.read_text())
+    except (ValueError, UnicodeDecodeError) as exc:
+        raise ConfigError(str(path), "-", f"not valid JSON: {exc}") from None
+    if not isinstance(meta, dict):
+        raise ConfigError(str(path), "-", f"must be a JSON object of {', '.join(META_KEYS)}, got {type(meta).__name__}")
+    for key, value in meta.items():
+        if key not in META_KEYS:
+            raise ConfigError(str(path), key, f"unknown key; expected one of {', '.join(META_KEYS)}")
+        if key == "mm_per_px" and value is not None:
+            finite_number(str(path), key, value, low=MM_PER_PX[0], high=MM_PER_PX[1])
+        elif key == "capture_hz":
+            finite_number(str(path), key, value, low=CAPTURE_HZ[0], high=CAPTURE_HZ[1])
+        elif key == "phases":
+            if (
+                not isinstance(value, list)
+                or not value
+                or not all(isinstance(v, str) and v for v in value)
+                or len(set(value)) != len(value)
+                or len(value) > 127
+            ):
+                raise ConfigError(str(path), key, f"must be a list of distinct phase names, got {value!r}")
+        elif key not in ("mm_per_px", "pose_convention") and not isinstance(value, str):
+            raise ConfigError(str(path), key, f"must be a string, got {value!r}")
+    return meta
+
+
+def sensor_kind(folder: Path, meta: dict, option: str | None) -> str:
+    """The sensor kind: ``--sensor``, else run.json's; one of SENSOR_KINDS, or a ConfigError that
+    lists them (evaluate and the simulator need it; an unknown kind used to surface only there)."""
+    if option is not None:
+        if option not in SENSOR_KINDS:
+            raise ConfigError(str(folder), "--sensor", f"must be one of {', '.join(SENSOR_KINDS)}, got {option!r}")
+        return option
+    kind = meta.get("sensor")
+    if kind is None:
+        raise ConfigError(
+            str(folder / "run.json"),
+            "sensor",
+            f'missing: pass --sensor {"|".join(SENSOR_KINDS)} or put "sensor" in run.json '
+            "(evaluate's physics row and the simulator need the kind)",
+        )
+    if kind not in SENSOR_KINDS:
+        raise ConfigError(
+            str(folder / "run.json"),
+            "sensor",
+            f"must be one of {', '.join(SENSOR_KINDS)}, got {kind!r}; pass --sensor to set it",
+        )
+    return str(kind)
+
+
+def frame_path(folder: Path, table: Path, i: int, name: str | None) -> Path:
+    """The frame file of CSV row ``i``; it must lie inside the import folder (no ``../``, no
+    absolute path, no link out of it), so an import never reads files it was not given."""
+    if not name:
+        raise ConfigError(
+            str(table), f"row {i + 2}, column file", "is empty (expected a path such as frames/000000.png)"
+        )
+    candidate = (folder / name).resolve()
+    if not candidate.is_relative_to(folder.resolve()):
+        raise ConfigError(
+            str(table),
+            f"row {i + 2}, column file",
+            f"{name!r} is outside {folder}; frame files must lie in the import folder",
+        )
+    return candidate
+
+
+def number(table: Path, row: dict, col: str, i: int, default=None, *, low=None, high=None, integer=False):
+    value = row.get(col, "")
+    if value in ("", None):
+        if default is None:
+            raise RunFileError(f"{table}: row {i + 2}, column {col} is empty")
+        return default
+    try:
+        parsed = float(value)
+    except ValueError:
+        raise RunFileError(f"{table}: row {i + 2}, column {col}: {value!r} is not a number") from None
+    key = f"row {i + 2}, column {col}"
+    parsed = finite_number(str(table), key, parsed, low=low, high=high)
+    if integer and not float(parsed).is_integer():
+        raise ConfigError(str(table), key, f"must be a whole number, got {parsed!r}")
+    return parsed
+
+
+def field_value(table: Path, field: S.Field, row: dict, i: int, default) -> np.ndarray | float | int:
+    """One field of CSV row ``i``, checked: finite, within BOUNDS (or its dtype), whole for
+    whole-number dtypes; ``default`` (an array or scalar) where its cells are absent."""
+    cols = S.columns_of(field)
+    kind = np.dtype(field.dtype).kind
+    limits = BOUNDS.get(field.path)
+    if limits is None and kind in "iu":
+        limits = (float(np.iinfo(field.dtype).min), float(np.iinfo(field.dtype).max))
+    per_col = limits if isinstance(limits, list) else [limits or (None, None)] * len(cols)
+    fallback = (
+        [None] * len(cols) if default is None else np.broadcast_to(np.asarray(default, dtype=float), (len(cols),))
+    )
+    got = [
+        number(table, row, c, i, None if d is None else float(d), low=lo, high=hi, integer=kind in "iu")
+        for c, d, (lo, hi) in zip(cols, fallback, per_col)
+    ]
+    out = np.asarray(got, dtype=field.dtype)
+    return out if field.shape else out[0].item()
+
+
+def read_rows(
+    folder: Path, table: Path, rows: list[dict], capture_hz: float, phases: tuple[str, ...], signs: np.ndarray
+) -> list[tuple[Path, dict]]:
+    """Every CSV row checked before anything is written: numbers finite and in range,
+    phases among the file's, levels whole, files inside the folder; poses times ``signs``
+    (dataset/pose_convention.py: the folder's convention brought to the run file's)."""
+    checked = []
+    for i, row in enumerate(rows):
+        phase = row.get("phase") or "press"
+        if phase not in phases:
+            raise ConfigError(
+                str(table),
+                f"row {i + 2}, column phase",
+                f"unknown phase {phase!r}; expected one of {', '.join(phases)}",
+            )
+        values: dict = {S.PHASE_INDEX: phases.index(phase), S.CAPTURE_INDEX: i}
+        defaults = {S.T_FRAME: float(i), S.T_CAPTURE: float(i) / capture_hz, S.LEVEL: 0.0}
+        for field in csv_fields():
+            if field.path in (S.PHASE_INDEX, *DERIVED):
+                continue
+            if field.path == S.POSE_COMMANDED:  # absent: the stages were where they were told
+                default = values[S.POSE_MEASURED] * signs  # (in the folder's convention, like the cells)
+            else:
+                default = defaults.get(field.path, None if field.path in REQUIRED else field.fill)
+            values[field.path] = field_value(table, field, row, i, default)
+            if field.path in POSES:
+                values[field.path] = values[field.path] * signs
+        checked.append((frame_path(folder, table, i, row.get("file")), values))
+    return checked
+
+
+def read_stream(folder: Path) -> np.ndarray | None:
+    """wrench_stream.csv, checked like frames.csv (finite, in the wrench's bounds, time not going back)."""
+    path = folder / STREAM_CSV
+    if not path.exists():
+        return None
+    try:
+        with open(path, newline="") as fh:
+            reader = csv.DictReader(fh)
+            missing = [c for c in STREAM_COLS if c not in (reader.fieldnames or [])]
+            if missing:
+                raise RunFileError(f"{path}: missing column(s) {', '.join(missing)}")
+            rows = list(reader)
+    except (UnicodeDecodeError, csv.Error) as exc:
+        raise RunFileError(f"{path}: not a readable CSV table ({exc})") from None
+    limits = [(0.0, T_FRAME_S), *BOUNDS[S.WRENCH]]
+    out = np.array(
+        [
+            [number(path, r, c, i, low=lo, high=hi) for c, (lo, hi) in zip(STREAM_COLS, limits)]
+            for i, r in enumerate(rows)
+        ],
+        dtype=float,
+    ).reshape(-1, len(STREAM_COLS))
+    back = np.diff(out[:, 0]) < 0
+    if back.any():
+        raise ConfigError(str(path), f"row {int(np.argmax(back)) + 3}, column t_s", "goes back in time")
+    return out
+
+
+def read_table(folder: Path) -> tuple[Path, list[dict]]:
+    """frames.csv and its rows, with the columns an import needs (the file, the wrench, the measured pose)."""
+    table = folder / "frames.csv"
+    if not table.exists():
+        raise RunFileError(f"{folder}: no frames.csv (see docs/dataset.md for the folder format)")
+    try:
+        with open(table, newline="") as fh:
+            reader = csv.DictReader(fh)
+            need = ("file", *(c for p in REQUIRED for c in S.columns_of(FIELDS[p])))
+            missing = [c for c in need if c not in (reader.fieldnames or [])]
+            if missing:
+                raise RunFileError(f"{table}: missing column(s) {', '.join(missing)}")
+            rows = list(reader)
+    except (UnicodeDecodeError, csv.Error) as exc:
+        raise RunFileError(f"{table}: not a readable CSV table ({exc})") from None
+    if not rows:
+        raise RunFileError(f"{table}: no rows")
+    return table, rows
