@@ -16,6 +16,7 @@ import contextlib
 import hmac
 import json
 import secrets
+import signal
 import socket
 import sys
 from dataclasses import dataclass, field
@@ -288,6 +289,9 @@ def serve(options: ConsoleOptions, sock: socket.socket, *, log_level: str = "war
 
     config = uvicorn.Config(build_app(options), log_level=log_level, ws="websockets-sansio", lifespan="on")
     server = uvicorn.Server(config)
+    # uvicorn shuts down gracefully on SIGINT and SIGTERM only; a closed terminal or SSH
+    # session sends SIGHUP, whose default would end the process with a stage still moving.
+    signal.signal(signal.SIGHUP, lambda signum, frame: server.handle_exit(signal.SIGTERM, frame))
     server.run(sockets=[sock])
     sys.stdout.flush()
 
