@@ -48,6 +48,7 @@ class Row:
     seconds_per_image: float
     images: int
     marker_failures: int = 0  # frames where 18×18 markers could not be found/matched
+    network_evaluations: int = 0  # forward passes of the network per image (sampler steps); 0: not the model
 
 
 @dataclass
@@ -58,6 +59,8 @@ class Evaluation:
     markers: bool
     simulated: bool = False  # every frame came from the simulated rig
     examples: dict[str, list[np.ndarray]] = field(default_factory=dict)  # column → BGR images of the example frames
+    example_labels: list[str] = field(default_factory=list)  # each example row's wrench and pose
+    context: dict[str, str] = field(default_factory=dict)  # what was evaluated, how, and on which machine
     references: list[np.ndarray] = field(default_factory=list)  # each example's no-contact frame
 
 
@@ -108,6 +111,8 @@ def evaluate(
     ev.examples["object at pose"] = [uint8_tensor_to_image(items[i]["condition"]) for i in ex]
     ev.examples["real"] = [real[i] for i in ex]
     ev.references = _references(data, [items[i]["run"] for i in ex], model.cfg.image_size)
+    ev.example_labels = [_label(data, items[i]) for i in ex]
+    ev.context = _context(model, data, part, len(items))
     ev.simulated = all(_simulated(path) for path in data.runs)
 
     if baseline:
@@ -139,9 +144,57 @@ def evaluate(
                 log(f"{sampler} {steps} steps: {len(made)}/{len(items)} frames")
         seconds = (time.perf_counter() - t0) / len(items)
         setting = f"{sampler}, {steps} steps"
-        ev.rows.append(_score(setting, real, made, seconds, markers))
+        row = _score(setting, real, made, seconds, markers)
+        row.network_evaluations = steps  # guidance runs both halves in one batched pass
+        ev.rows.append(row)
         ev.examples[setting] = [made[i] for i in ex]
     return ev
+
+
+def _label(data: TactileDataset, item: dict) -> str:
+    """An example row's condition in numbers: the wrench (N, N·mm) and the pose (mm, deg)."""
+    w = item["wrench"].numpy() * data.std + data.mean
+    x, y, z, theta = (float(v) for v in item["pose"].numpy())
+    # ASCII only: OpenCV's figure text has no glyphs for · θ °
+    return (
+        f"Fz {w[2]:.2f} N  Fx {w[0]:+.2f}  Fy {w[1]:+.2f}  Mz {w[5]:+.1f} Nmm | "
+        f"x {x:+.2f}  y {y:+.2f}  z {z:+.2f} mm  theta {theta:+.1f} deg"
+    )
+
+
+def _context(model: TrainedModel, data: TactileDataset, part: str, frames: int) -> dict[str, str]:
+    """What the report is about, stated at its top: sizes, model, split and machine."""
+    import os
+    import platform
+
+    import torch
+
+    cfg, m = model.cfg, data.manifest
+    objects = sorted({str(r.get("object", "?")) for r in m["runs"]})
+    cpu = next((ln.split(":", 1)[1].strip() for ln in _cpuinfo() if ln.startswith("model name")), platform.processor())
+    device = str(model.device)
+    if model.device.type == "cuda":
+        device += f" ({torch.cuda.get_device_name(model.device)})"
+    return {
+        "image size": f"{cfg.image_size}×{cfg.image_size} px (the model's own; frames resized to it)",
+        "model": f"{cfg.network}, widths {list(cfg.block_out_channels)}, {cfg.layers_per_block} resnet block(s) "
+        f"per level, predicts {cfg.prediction}",
+        "conditioning": cfg.conditioning,
+        "split": f"by {m.get('by', '?')}, ratios {m.get('ratios', '?')}, seed {m.get('seed', '?')}; evaluated part "
+        f"{part!r}, {frames} frames; objects in the split: {', '.join(objects)}",
+        "machine": f"{platform.machine()}, {os.cpu_count()} cores ({cpu}), device {device}, torch "
+        f"{torch.__version__} with {torch.get_num_threads()} thread(s); load average at the start "
+        f"{os.getloadavg()[0]:.1f} (timings are warm, after one untimed batch, and share the machine "
+        "with whatever else ran)",
+    }
+
+
+def _cpuinfo() -> list[str]:
+    try:
+        with open("/proc/cpuinfo") as fh:
+            return fh.read().splitlines()
+    except OSError:
+        return []
 
 
 def _simulated(run_path: str) -> bool:
@@ -165,7 +218,11 @@ def _fmt_row(name: str, r: Row) -> str:
         mk = "—" if not r.marker_failures else f"— ({r.marker_failures} frames without markers)"
     else:
         mk = f"{r.marker_px:.2f}" + (f" ({r.marker_failures} frames failed)" if r.marker_failures else "")
-    return f"| {name} | {r.mse:.2f} | {r.mae:.2f} | {r.ssim:.3f} | {r.psnr:.2f} | {mk} | {r.seconds_per_image:.4f} |"
+    per_nfe = f"{r.seconds_per_image / r.network_evaluations:.5f}" if r.network_evaluations else "—"
+    return (
+        f"| {name} | {r.mse:.2f} | {r.mae:.2f} | {r.ssim:.3f} | {r.psnr:.2f} | {mk} | {r.seconds_per_image:.4f} "
+        f"| {per_nfe} |"
+    )
 
 
 def report(ev: Evaluation, out: str | Path, *, title: str) -> Path:
@@ -175,22 +232,23 @@ def report(ev: Evaluation, out: str | Path, *, title: str) -> Path:
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     n = ev.rows[0].images if ev.rows else 0
-    lines = [
-        f"# {title}",
+    lines = [f"# {title}", ""]
+    lines += [f"- **{key}**: {value}" for key, value in ev.context.items()]
+    lines += [
         "",
         f"{n} held-out frames. Metrics as docs/reference.md#metrics defines them (0–255 scale, all channels, "
         "whole image); marker error: mean distance per matched marker of the central 18×18, in px at the "
         "evaluated size.",
         "",
-        "| method | MSE | MAE | SSIM | PSNR | marker px/marker | s / image |",
-        "|---|---|---|---|---|---|---|",
+        "| method | MSE | MAE | SSIM | PSNR | marker px/marker | s / image | s / network evaluation |",
+        "|---|---|---|---|---|---|---|---|",
     ]
     for r in ev.rows:
         lines.append(_fmt_row(f"this model ({r.setting})", r))
     if ev.baseline is not None:
         lines.append(_fmt_row("physics render: the simulator's mechanics + lighting at the measured pose", ev.baseline))
     for name, mse_, mae_, ssim_, psnr_ in PAPER_ROWS:
-        lines.append(f"| {name} (paper's table, real data, 256 px) | {mse_} | {mae_} | {ssim_} | {psnr_} | — | — |")
+        lines.append(f"| {name} (paper's table, real data, 256 px) | {mse_} | {mae_} | {ssim_} | {psnr_} | — | — | — |")
     if ev.baseline is None:
         lines += ["", f"No physics-render row: {ev.baseline_note}"]
     elif ev.simulated:
@@ -213,7 +271,7 @@ def report(ev: Evaluation, out: str | Path, *, title: str) -> Path:
         "![examples](samples.png)",
     ]
     error_vs_time_plot(ev, out / "error_vs_time.png")
-    samples_figure(ev.examples, out / "samples.png")
+    samples_figure(ev.examples, out / "samples.png", ev.example_labels)
     if ev.markers:
         made = marker_flow_figure(ev, out / "marker_flow.png")
         if made:

@@ -68,8 +68,9 @@ def _header(text: str, width: int) -> np.ndarray:
     return strip
 
 
-def samples_figure(columns: dict[str, list[np.ndarray]], path: Path) -> None:
-    """A grid: one row per example frame, one column per source, each headed."""
+def samples_figure(columns: dict[str, list[np.ndarray]], path: Path, row_labels: list[str] | None = None) -> None:
+    """A grid: one row per example frame, one column per source, each headed; under each row
+    its label (the wrench and pose it was generated for) when given."""
     cols = []
     for name, images in columns.items():
         tiles = [_tile(im) for im in images]
@@ -77,7 +78,23 @@ def samples_figure(columns: dict[str, list[np.ndarray]], path: Path) -> None:
         body = np.concatenate([x for t in tiles for x in (t, gap)][:-1], axis=0)
         cols.append(np.concatenate([_header(name, body.shape[1]), body], axis=0))
     sep = np.full((cols[0].shape[0], 4, 3), 255, np.uint8)
-    cv2.imwrite(str(path), np.concatenate([x for c in cols for x in (c, sep)][:-1], axis=1))
+    grid = np.concatenate([x for c in cols for x in (c, sep)][:-1], axis=1)
+    if row_labels:
+        grid = _label_rows(grid, row_labels, tile_h=_tile(next(iter(columns.values()))[0]).shape[0])
+    cv2.imwrite(str(path), grid)
+
+
+def _label_rows(grid: np.ndarray, labels: list[str], tile_h: int) -> np.ndarray:
+    """Each example row followed by a strip with its label (the header is 22 px, rows are
+    tile_h + 4 px apart)."""
+    parts, top = [grid[:22]], 22
+    for i, text in enumerate(labels):
+        bottom = min(grid.shape[0], top + tile_h + (4 if i < len(labels) - 1 else 0))
+        parts.append(grid[top:bottom])
+        parts.append(_header(text, grid.shape[1]))
+        top = bottom
+    parts.append(grid[top:])
+    return np.concatenate(parts, axis=0)
 
 
 def _flow_panel(reference: np.ndarray, image: np.ndarray, colour) -> np.ndarray | None:

@@ -214,6 +214,25 @@ def test_evaluate_writes_the_report_with_the_physics_render_row(tmp_path):
     assert saved["physics_render"]["mse"] == pytest.approx(ev.baseline.mse)
 
 
+def test_the_report_states_what_was_evaluated_and_labels_its_examples(tmp_path):
+    """Image size, model, conditioning, split and machine at the top; each example row with the
+    wrench and pose it was generated for; seconds per network evaluation beside per image."""
+    from model.evaluate import evaluate, report
+
+    split, run = trained_run(tmp_path, 2)
+    ev = evaluate(run, split, settings=(("ddim", 4),), limit=3, baseline=False, n_examples=2)
+    assert len(ev.example_labels) == 2 and all(
+        label.startswith("Fz ") and " mm " in label for label in ev.example_labels
+    )
+    text = report(ev, tmp_path / "report", title="test").read_text()
+    for key in ("image size", "model", "conditioning", "split", "machine"):
+        assert f"- **{key}**: " in text, key
+    assert "- **image size**: 16×16 px" in text and "by frame, ratios 8:2" in text
+    row = next(line for line in text.splitlines() if line.startswith("| this model (ddim, 4 steps) |"))
+    per_image, per_nfe = (float(cell) for cell in row.strip("|").split("|")[-2:])
+    assert per_nfe == pytest.approx(per_image / 4, rel=0.01)
+
+
 def test_physics_render_reproduces_a_simulated_frame(tmp_path):
     """On a frame the simulator made, the baseline differs only by the frame's sensor noise."""
     import numpy as np
