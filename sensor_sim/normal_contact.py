@@ -20,13 +20,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from sensor_sim.kernels import Kernels
+from sensor_sim.stall import StallWatch
 
 REFRESH = 8  # iterations between full recomputations of the displacement
 # Stalled: the residual has not halved in this many iterations. Four refresh cycles:
 # PK's residual is not monotone while the contact set settles, but on every bench
 # case (32²..256², Hertz and punch) it halves within 2 cycles until the float32 floor.
 STALL_ITERATIONS = 4 * REFRESH
-STALL_FACTOR = 0.5
 
 
 @dataclass
@@ -75,7 +75,7 @@ def solve_normal(
     t = np.zeros_like(p)
     delta, G_old = 0.0, 1.0
     residual, it, converged, precise = np.inf, 0, False, False
-    mark, mark_at = np.inf, 0  # the last residual that halved the one before, and when
+    stall = StallWatch(STALL_ITERATIONS)
     u = conv(p)
     for it in range(1, max_iter + 1):
         g = u - target
@@ -113,14 +113,12 @@ def solve_normal(
         if residual < tol:
             converged = True
             break
-        if residual < STALL_FACTOR * mark:
-            mark, mark_at = residual, it
-        elif it - mark_at >= STALL_ITERATIONS:
+        if stall.stalled(residual, it):
             if precise:
                 break  # stalled in float64 as well: tol is beyond reach
             # Restart CG in double precision from the current pressure.
             precise, conv = True, lambda f: kernels.normal_displacement(f, precise=True)
-            mark, mark_at = residual, it
+            stall.restart(residual, it)
             u, t, delta, G_old = conv(p), np.zeros_like(p), 0.0, 1.0
     u = conv(p)
     return NormalSolution(

@@ -19,12 +19,12 @@ import numpy as np
 import scipy.fft as sfft
 
 from sensor_sim.kernels import Kernels
+from sensor_sim.stall import StallWatch
 
 # Stalled: the residual has not halved in this many iterations. FISTA's slowest
 # healthy case measured (a twist at 128²) halves it every ~130 iterations; on the
 # float32 floor it never does again.
 STALL_ITERATIONS = 250
-STALL_FACTOR = 0.5
 
 
 @dataclass
@@ -106,7 +106,7 @@ def solve_tangential(
         qx, qy = project(np.where(contact, dxf, 0.0) * 1e30, np.where(contact, dyf, 0.0) * 1e30)  # full slip guess
     yx, yy, t = qx, qy, 1.0
     residual, it, converged, precise = np.inf, 0, False, False
-    mark, mark_at = np.inf, 0  # the last residual that halved the one before, and when
+    stall = StallWatch(STALL_ITERATIONS)
     displacement = _displacement(kernels, precise)
     for it in range(1, max_iter + 1):
         ux, uy = displacement(yx, yy)
@@ -125,12 +125,11 @@ def solve_tangential(
         if residual < tol:
             converged = True
             break
-        if residual < STALL_FACTOR * mark:
-            mark, mark_at = residual, it
-        elif it - mark_at >= STALL_ITERATIONS:
+        if stall.stalled(residual, it):
             if precise:
                 break  # stalled in float64 as well: tol is beyond reach
-            precise, mark, mark_at = True, residual, it
+            precise = True
+            stall.restart(residual, it)
             displacement = _displacement(kernels, precise)
             yx, yy, t = qx, qy, 1.0  # restart the momentum in double precision
     ux, uy = kernels.tangential_displacement(qx, qy, precise=precise)
