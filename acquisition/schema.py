@@ -131,6 +131,7 @@ FIXED_FIELDS = (
     Field(SIM_SOLVER_WARNINGS, (), "i8", "count", False, required=False),
 )
 FIELDS = (FRAMES_FIELD, *PER_FRAME_FIELDS, *STREAM_FIELDS, *FIXED_FIELDS)
+FIELD = {f.path: f for f in FIELDS}  # a field by its dataset path
 
 # Root attributes and the kind of value each holds: "str", "float", "int", "float[4]", "str[]".
 ATTRS = (

@@ -15,15 +15,14 @@ difference from the reference (per-pixel work in the page).
 from __future__ import annotations
 
 import argparse
-import os
 import platform
 import shutil
 import threading
 import time
-from pathlib import Path
 
 from cli.console.launch import console_options
 from cli.console.server import serving_in_thread
+from common.machine import describe
 
 
 def browser():
@@ -35,18 +34,6 @@ def browser():
     for arg in ("--headless=new", "--no-sandbox", "--disable-dev-shm-usage", "--window-size=1400,1200"):
         options.add_argument(arg)
     return webdriver.Chrome(service=Service(shutil.which("chromedriver") or "chromedriver"), options=options)
-
-
-def machine() -> str:
-    cpu = platform.processor() or platform.machine()
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
-    return f"{cpu}, {os.cpu_count()} cores, {platform.system()} {platform.release()}"
 
 
 def main() -> None:
@@ -76,7 +63,8 @@ def main() -> None:
                 rows.append((view, camera_fps, drawn_fps, stats["latency_ms"]))
         finally:
             driver.quit()
-    print(f"machine: {machine()}; chromium {version} headless; {args.seconds:g} s per view\n")
+    system = f"{platform.system()} {platform.release()}"
+    print(f"machine: {describe()}, {system}; chromium {version} headless; {args.seconds:g} s per view\n")
     print("| view | camera frames/s | frames drawn/s | latency p50 (ms) | p95 (ms) | p99 (ms) |")
     print("|---|---|---|---|---|---|")
     for view, camera_fps, drawn_fps, lat in rows:

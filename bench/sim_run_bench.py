@@ -23,13 +23,14 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import platform
 import statistics
 import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
+
+from common.machine import describe
 
 ROOT = Path(__file__).resolve().parents[1]
 BASELINE = "aacd35882bedd37c992864a283c2c0a90c5d8214"  # main when issue 17's speed-up began
@@ -224,18 +225,6 @@ def old_tree(commit: str, where: Path) -> Path:
     return tree
 
 
-def machine() -> str:
-    cpu = ""
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
-    return f"{platform.machine()}, {os.cpu_count()} cores, {cpu}, Python {platform.python_version()}"
-
-
 def error_table(fast: Path, exact: Path) -> list[tuple[str, float, float, str]]:
     import numpy as np
 
@@ -282,7 +271,7 @@ def main() -> None:
     work = Path(tempfile.mkdtemp(prefix="simbench-trees-"))
     old = args.old_tree.resolve() if args.old_tree else old_tree(args.old, work)
     new = ROOT
-    print(f"machine: {machine()}; load {os.getloadavg()[0]:.2f}")
+    print(f"machine: {describe()}; load {os.getloadavg()[0]:.2f}")
     print(f"protocol: {args.protocol} {' '.join('--set ' + s for s in args.set)}; old {args.old[:12]} ({old})")
     sides = {"old": old, "new": new}
     if not args.skip_timing:

@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import argparse
 import os
-import platform
 import tempfile
 import time
 from pathlib import Path
@@ -27,6 +26,8 @@ from pathlib import Path
 import cv2
 import h5py
 import numpy as np
+
+from common.machine import describe
 
 
 def codecs() -> dict[str, dict]:
@@ -121,11 +122,7 @@ def main() -> None:
     ap.add_argument("--frames", type=int, default=200, help="frames written per codec and set (default 200)")
     ap.add_argument("--sim-frames", type=int, default=24, help="distinct simulated frames per kind (default 24)")
     args = ap.parse_args()
-    cpu = next((line.split(":", 1)[1].strip() for line in open("/proc/cpuinfo") if line.startswith("model name")), "?")
-    print(
-        f"machine: {platform.machine()}, {os.cpu_count()} cores ({cpu}), Python {platform.python_version()}, "
-        f"h5py {h5py.version.version}, HDF5 {h5py.version.hdf5_version}\n"
-    )
+    print(f"machine: {describe()}, h5py {h5py.version.version}, HDF5 {h5py.version.hdf5_version}\n")
     sets: dict[str, list[np.ndarray]] = {}
     if args.real:
         real = real_frames(args.real)

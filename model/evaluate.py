@@ -165,13 +165,13 @@ def _label(data: TactileDataset, item: dict) -> str:
 def _context(model: TrainedModel, data: TactileDataset, part: str, frames: int) -> dict[str, str]:
     """What the report is about, stated at its top: sizes, model, split and machine."""
     import os
-    import platform
 
     import torch
 
+    from common.machine import describe
+
     cfg, m = model.cfg, data.manifest
     objects = sorted({str(r.get("object", "?")) for r in m["runs"]})
-    cpu = next((ln.split(":", 1)[1].strip() for ln in _cpuinfo() if ln.startswith("model name")), platform.processor())
     device = str(model.device)
     if model.device.type == "cuda":
         device += f" ({torch.cuda.get_device_name(model.device)})"
@@ -182,19 +182,11 @@ def _context(model: TrainedModel, data: TactileDataset, part: str, frames: int) 
         "conditioning": cfg.conditioning,
         "split": f"by {m.get('by', '?')}, ratios {m.get('ratios', '?')}, seed {m.get('seed', '?')}; evaluated part "
         f"{part!r}, {frames} frames; objects in the split: {', '.join(objects)}",
-        "machine": f"{platform.machine()}, {os.cpu_count()} cores ({cpu}), device {device}, torch "
+        "machine": f"{describe()}, device {device}, torch "
         f"{torch.__version__} with {torch.get_num_threads()} thread(s); load average at the start "
         f"{os.getloadavg()[0]:.1f} (timings are warm, after one untimed batch, and share the machine "
         "with whatever else ran)",
     }
-
-
-def _cpuinfo() -> list[str]:
-    try:
-        with open("/proc/cpuinfo") as fh:
-            return fh.read().splitlines()
-    except OSError:
-        return []
 
 
 def _simulated(run_path: str) -> bool:

@@ -10,6 +10,7 @@ import numpy as np
 import torch
 from torch import nn
 
+from acquisition import schema as S
 from dataset.condition import condition_image, normalise_wrench
 from dataset.torch_dataset import image_to_tensor, scale_images, tensor_to_image
 from model import checkpoint as C
@@ -134,22 +135,9 @@ class TrainedModel:
         )
         with open(out / "index.csv", "w", newline="") as fh:
             writer = csv.writer(fh)
+            # the wrench and pose columns as export/import's frames.csv names them
             writer.writerow(
-                [
-                    "run",
-                    "frame",
-                    "Fx_N",
-                    "Fy_N",
-                    "Fz_N",
-                    "Mx_Nmm",
-                    "My_Nmm",
-                    "Mz_Nmm",
-                    "x_mm",
-                    "y_mm",
-                    "z_mm",
-                    "theta_deg",
-                    "png",
-                ]
+                ["run", "frame", *S.columns_of(S.FIELD[S.WRENCH]), *S.columns_of(S.FIELD[S.POSE_MEASURED]), "png"]
             )
             for k, (it, img) in enumerate(zip(items, made), 1):
                 name = f"{it['run']:02d}-{it['frame']:06d}.png"
