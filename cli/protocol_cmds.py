@@ -198,19 +198,25 @@ def _execute(rig, plan, path, resume, origin, header, monitor_interval_s, solver
     from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 
     from acquisition.executor import Acquisition
+    from cli.console.run_progress import ProgressWriter
 
-    with Progress(
-        TextColumn("{task.description}"),
-        BarColumn(),
-        TextColumn("{task.completed}/{task.total} frames"),
-        TimeRemainingColumn(),
-        TextColumn("{task.fields[wrench]}"),
-        console=console,
-        transient=False,
-    ) as bar:
+    sidecar = ProgressWriter(path, protocol=plan.protocol.name, frames=plan.frame_count, levels_mm=plan.protocol.levels)
+    with (
+        sidecar,
+        Progress(
+            TextColumn("{task.description}"),
+            BarColumn(),
+            TextColumn("{task.completed}/{task.total} frames"),
+            TimeRemainingColumn(),
+            TextColumn("{task.fields[wrench]}"),
+            console=console,
+            transient=False,
+        ) as bar,
+    ):
         task = bar.add_task(plan.protocol.name, total=plan.frame_count, wrench="")
 
         def on_progress(p):
+            sidecar.update(p)  # RUN.h5.progress.json: what `rig console` shows while the run goes on
             bar.update(
                 task,
                 completed=p.frame,

@@ -450,11 +450,19 @@ def console_cmd(
     ] = Path("runs"),
     config: ConfigOpt = None,
     sim: SimOpt = False,
+    sensor: Annotated[
+        str,
+        typer.Option(
+            help="The camera's sensor kind: rgb, rgb_markers or white_markers; marker kinds get marker-flow "
+            "arrows (with --sim, the kind the simulated camera renders)."
+        ),
+    ] = "rgb",
 ):
-    """Serve the web console: live tactile frame, wrench traces, axes, guarded jog/stop/home/zero, run browser."""
+    """Serve the web console: live tactile frame, marker flow, wrench traces, axes, guarded jog/stop/home/zero,
+    run browser and the progress of protocol runs being written."""
     from cli.console.launch import run_console
 
-    run_console(config=config, sim=sim, live=True, host=host, port=port, runs=[runs], say=typer.echo)
+    run_console(config=config, sim=sim, live=True, host=host, port=port, runs=[runs], say=typer.echo, sensor=sensor)
 
 
 if __name__ == "__main__":

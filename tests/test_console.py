@@ -1,9 +1,11 @@
 """`rig console` driven in a real headless browser (Debian's chromium + chromedriver, selenium).
 
-The console serves the simulated rig (`--sim`) from a thread of this process; the page is
-driven as a user would: the live frame updates, a jog button moves the stage and the force
-trace responds, STOP halts a move, a second browser is refused control, and the run browser
-shows frame N and its wrench for a run recorded here. Screenshots go to docs/img/.
+The console serves the simulated rig (`--sim`, a marker sensor) from a thread of this process;
+the page is driven as a user would: the live frame updates, a jog button moves the stage and
+the force trace responds, marker-flow arrows follow a shear, STOP halts a move, a second
+browser is refused control, the run browser shows frame N and its wrench for a run recorded
+here, and a `rig run-protocol` started as its own process shows live in the progress panel.
+Screenshots go to docs/img/.
 
 scripts/setup.sh installs chromium and chromium-driver where they are missing; without them
 these tests skip locally and fail under CI (CI=true), so a missing install cannot pass silently.
@@ -45,7 +47,7 @@ def new_browser():
     from selenium.webdriver.chrome.service import Service
 
     options = webdriver.ChromeOptions()
-    options.binary_location = CHROMIUM
+    options.binary_location = CHROMIUM or ""
     for arg in ("--headless=new", "--no-sandbox", "--disable-dev-shm-usage", "--window-size=1400,1300"):
         options.add_argument(arg)
     return webdriver.Chrome(service=Service(CHROMEDRIVER), options=options)
@@ -70,6 +72,12 @@ QUICK_CHANGES = (
     ("speed_mm_s = 0.01", "speed_mm_s = 0.2"),
     ("twist_speed_deg_s = 0.25", "twist_speed_deg_s = 2.0"),
 )
+
+
+def load_protocol_text(name: str = "sphere10mm") -> str:
+    from protocols.spec import load_protocol
+
+    return load_protocol(name).text
 
 
 def record_quick_run(folder: Path) -> Path:
@@ -103,7 +111,7 @@ def runs_dir(tmp_path_factory):
 @pytest.fixture(scope="module")
 def console(runs_dir):
     _need_browser()
-    options = console_options(config=None, sim=True, live=True, runs=[runs_dir])
+    options = console_options(config=None, sim=True, live=True, runs=[runs_dir], sensor="rgb_markers")
     with serving_in_thread(options) as url:
         worker = options.worker
         assert worker is not None and worker.ready.wait(WAIT_S), "the simulated rig did not open"
@@ -126,6 +134,7 @@ def axis_position(driver, axis: str) -> float:
 
 
 def take_control(driver):
+    wait_for(driver, lambda d: d.find_element("id", "take-control").is_displayed(), "the live view is not shown")
     driver.find_element("id", "take-control").click()
     wait_for(driver, lambda d: page(d, "window.rigConsole.control && window.rigConsole.control.you"), "no control")
 
@@ -193,6 +202,61 @@ def test_jog_moves_the_stage_and_the_force_trace_responds(browser):
     assert axis_position(browser, "z") == pytest.approx(z0, abs=0.01)
 
 
+def flow_after(driver, frame_index: int) -> dict:
+    """The page's summary of the first marker flow drawn for a frame after ``frame_index``."""
+    wait_for(
+        driver,
+        lambda d: (page(d, "window.rigConsole.flow && window.rigConsole.flow.index") or -1) > frame_index,
+        "no marker flow drawn",
+    )
+    return page(driver, "window.rigConsole.flow")
+
+
+def overlay_green_pixels(driver) -> int:
+    return page(
+        driver,
+        "(() => { const c = document.getElementById('flow-overlay'); const d = c.getContext('2d')"
+        ".getImageData(0, 0, c.width, c.height).data; let n = 0;"
+        " for (let i = 0; i < d.length; i += 4) if (d[i+3] > 0 && d[i+1] > 200 && d[i] < 80) n++; return n; })()",
+    )
+
+
+def test_marker_flow_arrows_follow_the_shear(browser):
+    """Marker sensor: no arrows at rest; pressed and sheared along +x, then along -x, the
+    arrows' mean motion is along x and flips sign with the shear."""
+    wait_for(browser, lambda d: page(d, "'x' in window.rigConsole.axes"), "no axes shown")
+    assert browser.find_element("id", "marker-flow-label").is_displayed()
+    browser.find_element("id", "marker-flow").click()
+    rest = flow_after(browser, page(browser, "window.rigConsole.frameIndex"))
+    assert rest["matched"] >= 300, rest  # the 20 x 20 grid, the edges aside
+    assert rest["arrows"] == 0, rest  # nothing moved yet: no arrows
+    take_control(browser)
+    x0 = axis_position(browser, "x")
+    jog_and_wait(browser, "z", "minus", "5")
+    jog_and_wait(browser, "z", "minus", "1")  # ~0.9 mm into the gel
+    select_step(browser, "0.1")
+    sheared = {}
+    for sign, direction, clicks in ((1, "plus", 3), (-1, "minus", 6)):
+        for _ in range(clicks):
+            jog_and_wait(browser, "x", direction, "0.1")
+        flow = flow_after(browser, page(browser, "window.rigConsole.frameIndex"))
+        assert flow["arrows"] > 20, flow
+        assert abs(flow["meanDx"]) > 0.3 and abs(flow["meanDx"]) > 3 * abs(flow["meanDy"]), flow
+        sheared[sign] = flow
+        assert overlay_green_pixels(browser) > 50  # the arrows are on the canvas
+        if sign == 1:
+            browser.save_screenshot(str(IMG / "console_markers.png"))
+    assert sheared[1]["meanDx"] * sheared[-1]["meanDx"] < 0, sheared  # the arrows turned with the shear
+    jog_and_wait(browser, "x", "plus", "0.1")
+    jog_and_wait(browser, "x", "plus", "0.1")
+    jog_and_wait(browser, "x", "plus", "0.1")
+    jog_and_wait(browser, "z", "plus", "1")
+    jog_and_wait(browser, "z", "plus", "5")
+    assert axis_position(browser, "x") == pytest.approx(x0, abs=0.01)
+    browser.find_element("id", "marker-flow").click()
+    assert overlay_green_pixels(browser) == 0  # off: the overlay is cleared
+
+
 def test_stop_halts_a_move_in_progress(browser):
     take_control(browser)
     select_step(browser, "5")  # 5 mm at the jog speed of 1 mm/s: five seconds to stop it in
@@ -253,6 +317,7 @@ def test_run_browser_shows_frame_n_and_its_wrench(browser, runs_dir):
     for name, value in zip(("Fx", "Fy", "Fz", "Mx", "My", "Mz"), wrench):
         assert f"{name} {value:.3f}" in text
     assert f"frame {n} of {n_frames}" in browser.find_element("id", "run-frame-label").text
+    assert not browser.find_element("id", "run-flow-label").is_displayed()  # an rgb run: no markers to follow
     # the image shown is frame n itself (decoded by the browser, compared pixel by pixel)
     shown = page(
         browser,
@@ -291,3 +356,163 @@ def test_off_loopback_every_request_needs_the_token(tmp_path):
         with pytest.raises(urllib.error.HTTPError) as unknown:
             urllib.request.urlopen(request, timeout=10)
         assert unknown.value.code == 404
+
+
+RIG = str(Path(__import__("sys").executable).parent / "rig")
+
+
+def test_a_terminal_run_protocol_shows_live_in_the_progress_panel(browser, runs_dir):
+    """`rig run-protocol ... --sim` as its own process (as from a terminal) writing into the
+    console's runs folder: the panel shows its phase, frame count and ETA changing, then how
+    it ended; the latest pair shown is the file's own; the sidecar is gone at the end."""
+    import subprocess
+
+    from cli.console.run_progress import sidecar_path
+    from protocols.plan import Plan
+    from protocols.spec import load_protocol
+
+    text = load_protocol_text()
+    for old, new in QUICK_CHANGES:
+        text = text.replace(old, new)
+    text = text.replace('name = "console-quick"', 'name = "console-progress"').replace(
+        "speed_mm_s = 0.2",
+        "speed_mm_s = 0.025",  # 72 frames: long enough for many looks on any machine
+    )
+    spec = runs_dir / "console-progress.toml"
+    spec.write_text(text)
+    n_frames = Plan.of(load_protocol(spec)).frame_count
+    browser.execute_script("window.rigConsole.progressEveryMs = 250;")
+    out = runs_dir / "progress-markers.h5"
+    proc = subprocess.Popen(
+        [RIG, "run-protocol", str(spec), "--sim", "--out", str(out), "--set", "protocol.sensor=rgb_markers"],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        entry = lambda d: next((p for p in page(d, "window.rigConsole.progress") if p["run"] == out.name), None)
+        # the page's entry and its card's text, read in one go (the page updates both at once)
+        snapshot = (
+            "(() => { const p = window.rigConsole.progress.find((e) => e.run === arguments[0]);"
+            " const c = document.querySelector(`.progress-card[data-run='${arguments[0]}']`);"
+            " return [p || null, c ? c.innerText : '', c ? c.querySelector('img').dataset.index || '' : '']; })()"
+        )
+        wait_for(browser, lambda d: (entry(d) or {}).get("frame", 0) >= 1, "the run never showed in the panel")
+        seen: list[dict] = []
+        shot = False
+        while True:
+            p, card_text, img_index = wait_for(
+                browser,
+                lambda d: (
+                    (snap := d.execute_script(f"return {snapshot};", out.name))[0]
+                    and (snap[0].get("finished") or not seen or snap[0]["frame"] != seen[-1]["frame"])
+                    and snap
+                ),
+                "the panel stopped updating",
+            )
+            if p.get("finished"):
+                break
+            assert not p.get("error") and not p["stale"], p
+            assert f"{p['frame']} / {n_frames}" in card_text and p["phase"] in card_text, (p, card_text)
+            assert "ETA" in card_text
+            seen.append(p)
+            if not shot and p["frame"] >= n_frames // 3 and img_index:
+                browser.execute_script("window.scrollTo(0, 0)")
+                browser.save_screenshot(str(IMG / "console_progress.png"))
+                shot = True
+        assert proc.wait(120) == 0, proc.stderr.read() if proc.stderr else ""
+    finally:
+        if proc.poll() is None:
+            proc.terminate()
+            proc.wait(60)
+    frames = [p["frame"] for p in seen]
+    assert len(set(frames)) >= 3 and frames == sorted(frames) and frames[-1] <= n_frames, frames
+    assert len({p["phase"] for p in seen}) >= 2, [p["phase"] for p in seen]  # press, shear, ...
+    etas = [p["eta_s"] for p in seen]
+    assert etas[-1] < etas[0], etas  # the ETA counts down
+    assert all(p["protocol"] == "console-progress" and p["frames"] == n_frames for p in seen)
+    assert {p["depth_mm"] for p in seen} == {0.4}  # the one level of this protocol
+    assert shot, f"never saw frame {n_frames // 3} of {n_frames} in the panel"
+    # the end: the sidecar is gone, the panel says how the run ended (from the file)
+    assert not sidecar_path(out).exists()
+    done = wait_for(
+        browser, lambda d: (e := entry(d)) and e.get("finished") and e.get("committed") == n_frames and e, "end"
+    )
+    assert done["file_status"] == "complete"
+    card = browser.find_element("css selector", f'.progress-card[data-run="{out.name}"]')
+    wait_for(browser, lambda d: "complete" in card.text, "the panel does not say complete")
+    # the latest pair shown is the file's last frame and its wrench
+    with open_for_reading(out) as f:
+        wrench = np.asarray(f[S.WRENCH][n_frames - 1])
+    wait_for(browser, lambda d: f"frame {n_frames - 1}:" in card.text, "the last pair is not shown")
+    for name, value in zip(("Fx", "Fy", "Fz", "Mx", "My", "Mz"), wrench):
+        assert f"{name} {value:.3f}" in card.text
+
+
+def test_run_browser_marker_flow_against_the_reference(browser, runs_dir):
+    """The marker run of the progress test in the run browser: marker flow of frame N."""
+    from selenium.webdriver.support.ui import Select
+
+    name = "progress-markers.h5"
+    if not (runs_dir / name).exists():
+        pytest.skip("needs the run of the progress test")
+    browser.find_element("id", "run-refresh").click()
+    wait_for(browser, lambda d: name in d.find_element("id", "run-select").text, "run not listed")
+    Select(browser.find_element("id", "run-select")).select_by_value(name)
+    wait_for(browser, lambda d: (page(d, "window.rigConsole.run") or {}).get("name") == name, "run not opened")
+    assert browser.find_element("id", "run-flow-label").is_displayed()
+    browser.find_element("id", "run-flow").click()
+    flows = {}
+    for i in (0, 24):  # frame 0: first touch; 24: pressed and sheared
+        browser.execute_script(
+            "const s = document.getElementById('run-slider'); s.value = arguments[0];"
+            " s.dispatchEvent(new Event('input'));",
+            i,
+        )
+        shown = lambda d, i=i: (page(d, "window.rigConsole.runFlow") or {}).get("index") == i
+        wait_for(browser, shown, f"no flow of frame {i}")
+        flows[i] = page(browser, "window.rigConsole.runFlow")
+    assert flows[24]["arrows"] > 20 and flows[24]["arrows"] > flows[0]["arrows"], flows
+    browser.execute_script("document.getElementById('browser').scrollIntoView()")
+    browser.save_screenshot(str(IMG / "run_browser_markers.png"))
+
+
+def test_a_protocol_started_from_the_page_ends_interrupted_on_stop(browser, runs_dir):
+    """The controller starts a library protocol on the console's own rig; the progress panel
+    follows it, a jog meanwhile is refused, STOP ends it as Ctrl-C would: the stages stop, z
+    is lifted to the approach height, the file ends `interrupted` naming who stopped it, and
+    the console is usable again."""
+    from selenium.webdriver.support.ui import Select
+
+    from cli.console.run_progress import sidecar_path
+
+    take_control(browser)
+    assert "sphere10mm" in [o.text for o in Select(browser.find_element("id", "protocol-select")).options]
+    Select(browser.find_element("id", "protocol-select")).select_by_value("sphere10mm")
+    browser.find_element("id", "protocol-origin").clear()
+    browser.find_element("id", "protocol-origin").send_keys("0,0,0,0")
+    before = set(runs_dir.glob("sphere10mm-*.h5"))
+    browser.find_element("id", "run-protocol").click()
+    mine = lambda d: next(
+        (p for p in page(d, "window.rigConsole.progress") if p["run"].startswith("sphere10mm-") and "frame" in p), None
+    )
+    # the approach (from z = 5 mm at 0.5 mm/s) takes some seconds, then a frame a second
+    wait_for(browser, lambda d: (mine(d) or {}).get("frame", 0) >= 3, "the run never showed progress", 120)
+    p = mine(browser)
+    assert p["protocol"] == "sphere10mm" and p["phase"] == "press" and p["frames"] > 100
+    (out,) = set(runs_dir.glob("sphere10mm-*.h5")) - before
+    page(browser, "(window.rigConsole.send({type: 'jog', axis: 'x', step: 1}), true)")
+    wait_for(browser, lambda d: "a protocol is running" in d.find_element("id", "control-msg").text, "jog taken")
+    browser.find_element("id", "stop").click()
+    ended = lambda d: [e for e in page(d, "window.rigConsole.events") if "protocol sphere10mm: " in e]
+    wait_for(browser, ended, "the run did not end", 120)
+    assert "interrupted" in ended(browser)[-1] and "STOP from 127.0.0.1" in ended(browser)[-1]
+    with open_for_reading(out) as f:
+        status, reason = f[S.STATUS][()].decode(), f[S.STATUS_REASON][()].decode()
+        n = f[S.FRAMES].shape[0]
+    assert status == "interrupted" and "STOP from 127.0.0.1" in reason, (status, reason)
+    assert 3 <= n < p["frames"]
+    assert not sidecar_path(out).exists()
+    wait_for(browser, lambda d: axis_position(d, "z") >= 1.0 - 0.01, "z was not lifted to the approach height")
+    z = jog_and_wait(browser, "z", "plus", "1")  # the console goes on: jogging works again
+    assert z >= 2.0 - 0.01

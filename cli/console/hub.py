@@ -40,6 +40,8 @@ class Client:
     events: deque = field(default_factory=lambda: deque(maxlen=EVENTS_KEPT))
     wake: asyncio.Event = field(default_factory=asyncio.Event)
     frame_sent_at: float | None = None  # monotonic time of the frame not yet acked
+    wants_flow: bool = False  # marker-flow arrows asked for (marker sensors)
+    flow: dict | None = None  # the newest marker flow not yet sent
 
 
 def encode_frame(frame: FrameOut) -> bytes:
@@ -68,6 +70,15 @@ class Hub:
         for c in self.clients:
             c.frame = frame
             c.wake.set()
+
+    def on_flow(self, flow: dict) -> None:
+        for c in self.clients:
+            if c.wants_flow:
+                c.flow = flow  # latest wins, as frames
+                c.wake.set()
+
+    def flow_wanted(self) -> int:
+        return sum(c.wants_flow for c in self.clients)
 
     def on_event(self, level: str, text: str) -> None:
         self.broadcast({"type": "event", "level": level, "text": text, "at": time.strftime("%H:%M:%S")})
@@ -142,6 +153,9 @@ class Hub:
             if client.state is not None:
                 state, client.state = client.state, None
                 await client.send_text(json.dumps(state))
+            if client.flow is not None:
+                flow, client.flow = client.flow, None
+                await client.send_text(json.dumps(flow))
             waiting = client.frame_sent_at is not None
             if client.frame is not None and (
                 not waiting or time.monotonic() - (client.frame_sent_at or 0.0) > FRAME_ACK_TIMEOUT_S

@@ -2,7 +2,8 @@
 
 Routes: ``/`` the page, ``/static/…`` its files, ``/ws`` the live link (state, frames, events
 out; commands and frame acks in), ``/api/info``, ``/api/stats`` (frames drawn, latency),
-``/api/runs``, ``/api/run`` and ``/api/run/image`` (the run browser).
+``/api/runs``, ``/api/run``, ``/api/run/image`` and ``/api/run/flow`` (the run browser),
+``/api/progress`` (runs being written, from their progress sidecars).
 
 Bound to 127.0.0.1 by default. On any other address every request needs the access token
 printed at start (``?token=`` once, then a cookie); WebSockets from another origin are refused
@@ -19,6 +20,7 @@ import secrets
 import signal
 import socket
 import sys
+import time
 from dataclasses import dataclass, field
 from http.cookies import SimpleCookie
 from pathlib import Path
@@ -31,10 +33,12 @@ from starlette.routing import Mount, Route, WebSocketRoute
 from starlette.staticfiles import StaticFiles
 from starlette.websockets import WebSocket, WebSocketDisconnect
 
+from cli.console.flow import MarkerFlow
 from cli.console.hub import Client, Hub
-from cli.console.runs import RunLibrary, run_image, run_series
+from cli.console.runs import ProgressWatch, RunLibrary, run_flow, run_image, run_series
 from cli.console.worker import Command, RigWorker
 from common.errors import ToolError
+from common.sensors import has_markers
 
 STATIC = Path(__file__).parent / "static"
 LOOPBACK = ("127.0.0.1", "localhost", "::1")
@@ -50,10 +54,14 @@ class ConsoleOptions:
     library: RunLibrary
     token: str | None = None  # required on every request when set
     open_run: str | None = None  # the run the page opens first (`dataset view RUN.h5`)
+    sensor: str = "rgb"  # the live camera's sensor kind: marker kinds get marker-flow arrows
     hub: Hub = field(init=False)
+    flow: MarkerFlow | None = field(init=False, default=None)
+    progress: ProgressWatch = field(init=False)
 
     def __post_init__(self):
         self.hub = Hub(self.worker.now if self.worker else (lambda: float("nan")))
+        self.progress = ProgressWatch(self.library)
 
 
 class TokenGate:
@@ -114,12 +122,18 @@ def build_app(options: ConsoleOptions) -> Starlette:
                 on_frame=lambda frame: loop.call_soon_threadsafe(hub.on_frame, frame),
                 on_event=lambda level, text: loop.call_soon_threadsafe(hub.on_event, level, text),
             )
+            if has_markers(options.sensor):
+                options.flow = MarkerFlow(lambda flow: loop.call_soon_threadsafe(hub.on_flow, flow))
+                worker.frame_tap = options.flow.offer
+                options.flow.start()
             worker.start()
         try:
             yield
         finally:
             if worker is not None:
                 await asyncio.to_thread(worker.close)
+            if options.flow is not None:
+                await asyncio.to_thread(options.flow.close)
 
     async def index(_request: Request) -> Response:
         return FileResponse(STATIC / "index.html", headers={"cache-control": "no-store"})
@@ -133,6 +147,10 @@ def build_app(options: ConsoleOptions) -> Starlette:
                 "axes": list(rig.axes) if rig is not None else [],
                 "components": ["Fx", "Fy", "Fz", "Mx", "My", "Mz"],
                 "open_run": options.open_run,
+                "sensor": options.sensor,
+                "marker_flow": options.flow is not None,
+                "flow_scale": options.flow.scale if options.flow is not None else None,
+                "protocols": await asyncio.to_thread(_protocols_for, worker) if worker is not None else [],
             }
         )
 
@@ -150,6 +168,17 @@ def build_app(options: ConsoleOptions) -> Starlette:
             path = library.path(request.query_params.get("name", ""))
             return JSONResponse(await asyncio.to_thread(run_series, path))
         except ToolError as exc:
+            return JSONResponse({"error": str(exc)}, status_code=404)
+
+    async def progress(_request: Request) -> Response:
+        return JSONResponse(await asyncio.to_thread(options.progress.poll, time.time()))
+
+    async def flow(request: Request) -> Response:
+        try:
+            path = library.path(request.query_params.get("name", ""))
+            index = int(request.query_params.get("i", "0"))
+            return JSONResponse(await asyncio.to_thread(run_flow, path, index))
+        except (ToolError, ValueError) as exc:
             return JSONResponse({"error": str(exc)}, status_code=404)
 
     async def image(request: Request) -> Response:
@@ -178,11 +207,13 @@ def build_app(options: ConsoleOptions) -> Starlette:
         try:
             while True:
                 message = json.loads(await websocket.receive_text())
-                _handle(hub, worker, client, message)
+                _handle(hub, worker, client, message, options.flow)
         except (WebSocketDisconnect, json.JSONDecodeError, RuntimeError):
             pass
         finally:
             hub.leave(client)
+            if options.flow is not None:
+                options.flow.wanted = hub.flow_wanted()
             pump.cancel()
 
     app = Starlette(
@@ -193,6 +224,8 @@ def build_app(options: ConsoleOptions) -> Starlette:
             Route("/api/runs", runs),
             Route("/api/run", run),
             Route("/api/run/image", image),
+            Route("/api/run/flow", flow),
+            Route("/api/progress", progress),
             WebSocketRoute("/ws", live),
             Mount("/static", StaticFiles(directory=STATIC), name="static"),
         ],
@@ -200,6 +233,21 @@ def build_app(options: ConsoleOptions) -> Starlette:
     )
     app.add_middleware(TokenGate, token=options.token)
     return app
+
+
+def _protocols_for(worker: RigWorker) -> list[str]:
+    """The library protocols this console can start (its sensor; with --sim, its indenter)."""
+    from cli.console.protocol_run import library_protocol
+    from protocols.spec import protocol_names
+
+    names = []
+    for name in protocol_names():
+        try:
+            library_protocol(name, worker.sensor, simulated=worker.simulated)
+        except ToolError:
+            continue
+        names.append(name)
+    return names
 
 
 async def _pump(hub: Hub, client: Client) -> None:
@@ -210,11 +258,20 @@ async def _pump(hub: Hub, client: Client) -> None:
         pass  # the browser closed or the server is stopping: nothing left to deliver
 
 
-def _handle(hub: Hub, worker: RigWorker | None, client: Client, message: dict) -> None:
+def _handle(hub: Hub, worker: RigWorker | None, client: Client, message: dict, flow: MarkerFlow | None = None) -> None:
     """One message from a browser."""
     kind = message.get("type")
     if kind == "drawn":
         hub.frame_drawn(client, _number(message.get("t_s")))
+        return
+    if kind in ("flow", "set_reference"):  # views, not commands: any page may
+        if flow is None:
+            hub.tell(client, {"type": "refused", "text": "marker flow: this console's sensor has no markers"})
+        elif kind == "flow":
+            client.wants_flow = message.get("on") is True
+            flow.wanted = hub.flow_wanted()
+        else:
+            flow.set_reference()
         return
     if kind == "take_control":
         refused = hub.take_control(client)
@@ -227,15 +284,29 @@ def _handle(hub: Hub, worker: RigWorker | None, client: Client, message: dict) -
     if worker is None:
         hub.tell(client, {"type": "refused", "text": "no rig: this console only browses run files"})
         return
-    if kind == "stop":  # from anyone: whoever watches may halt the rig
-        worker.submit(Command("stop", who=client.peer))
+    if kind == "stop":  # from anyone: whoever watches may halt the rig (and end a protocol)
+        worker.request_stop(client.peer)
         return
-    if kind not in ("jog", "home", "zero"):
+    if kind not in ("jog", "home", "zero", "run_protocol"):
         hub.tell(client, {"type": "refused", "text": f"unknown command {kind!r}"})
         return
     if hub.controller is not client:
         holder = hub.controller.peer if hub.controller else "nobody"
         hub.tell(client, {"type": "refused", "text": f"{kind} refused: take control first (held by {holder})"})
+        return
+    if worker.protocol_running:
+        hub.tell(client, {"type": "refused", "text": f"{kind} refused: a protocol is running (STOP ends it)"})
+        return
+    if kind == "run_protocol":
+        from cli.console.protocol_run import check_origin, library_protocol
+
+        try:
+            origin = check_origin(message.get("origin"))
+            protocol = library_protocol(message.get("name"), worker.sensor, simulated=worker.simulated)
+        except ToolError as exc:
+            hub.tell(client, {"type": "refused", "text": f"run protocol refused: {exc}"})
+            return
+        worker.submit(Command("protocol", name=protocol.name, origin=origin, who=client.peer))
         return
     axis = message.get("axis") or None
     step = _number(message.get("step"))

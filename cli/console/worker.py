@@ -37,12 +37,15 @@ TARE_SAMPLES = 50  # as `rig zero`
 
 @dataclass(frozen=True)
 class Command:
-    """What a browser asked for: ``jog`` (axis, step), ``stop``, ``home`` (axis or all), ``zero``."""
+    """What a browser asked for: ``jog`` (axis, step), ``stop``, ``home`` (axis or all), ``zero``,
+    ``protocol`` (a library protocol's name and the contact origin x, y, z, theta)."""
 
     kind: str
     axis: str | None = None
     step: float | None = None
     who: str = ""
+    name: str = ""
+    origin: tuple[float, float, float, float] | None = None
 
 
 @dataclass(frozen=True)
@@ -57,8 +60,9 @@ class FrameOut:
 
 
 @contextlib.contextmanager
-def open_console_rig(config: Path | None, sim: bool) -> Iterator[tuple[Any, Any]]:
-    """Yield (rig, simulated rig or None): every configured device, the camera when configured.
+def open_console_rig(config: Path | None, sim: bool, sensor: str = "rgb") -> Iterator[tuple[Any, Any]]:
+    """Yield (rig, simulated rig or None): every configured device, the camera when configured;
+    ``sensor``: the kind the simulated camera renders (common/sensors.py).
 
     Like ``cli.session.open_rig`` but without signal handlers (this runs outside the main
     thread, where Python cannot install them; uvicorn's own handlers stop the server,
@@ -69,9 +73,10 @@ def open_console_rig(config: Path | None, sim: bool) -> Iterator[tuple[Any, Any]
     from rig.rig import Rig
 
     if sim:
+        from cli.console.protocol_run import SIM_INDENTER
         from rig.sim.rig_sim import SimulatedRig
 
-        with SimulatedRig() as simulated:
+        with SimulatedRig(sensor_kind=sensor, indenter=SIM_INDENTER) as simulated:
             cfg = simulated.config()
             with Rig.open(cfg, simulated.clock, camera=True, sim=simulated) as rig:
                 yield rig, simulated
@@ -93,8 +98,16 @@ class RigWorker:
         on_state: Callable[[dict], object],
         on_event: Callable[[str, str], object],
         on_frame: Callable[[FrameOut], object],
+        sensor: str = "rgb",
+        runs_folder: Path = Path("runs"),
+        simulated: bool = False,
     ):
         self._opener = opener
+        self.sensor = sensor  # the camera's sensor kind: a protocol started here must be for it
+        self.simulated = simulated  # the console's own simulated rig (--sim): its indenter is fixed
+        self.runs_folder = runs_folder  # where a protocol started here writes its run file
+        self._run_clock: Any = None  # the InterruptibleClock of the protocol running, if any
+        self.commands_done = 0  # commands carried out (or refused by the rig): benchmarks wait on it
         self.connect(on_state=on_state, on_event=on_event, on_frame=on_frame)
         self._commands: queue.Queue[Command | None] = queue.Queue()
         self._closing = threading.Event()
@@ -110,6 +123,7 @@ class RigWorker:
         self._axes: dict[str, dict] = {}
         self.activity = ""  # what is moving now, for the page
         self.frames_sent = 0
+        self.frame_tap: Callable[[int, float, np.ndarray], object] | None = None  # each raw frame (marker flow)
         self._thread = threading.Thread(target=self._run, name="rig-console-worker", daemon=True)
 
     # -- the server's side ----------------------------------------------------------------
@@ -131,9 +145,23 @@ class RigWorker:
     def submit(self, command: Command) -> None:
         self._commands.put(command)
 
+    @property
+    def protocol_running(self) -> bool:
+        return self._run_clock is not None
+
+    def request_stop(self, who: str) -> None:
+        """STOP (any thread): a protocol running ends as after Ctrl-C, a jog stops at its next poll."""
+        run_clock = self._run_clock
+        if run_clock is not None:
+            run_clock.request(f"STOP from {who or 'the console'}")
+        self.submit(Command("stop", who=who))
+
     def close(self, timeout_s: float = 30.0) -> None:
-        """Stop any move, close the rig and end the thread (bounded wait)."""
+        """Stop any move or protocol, close the rig and end the thread (bounded wait)."""
         self._closing.set()
+        run_clock = self._run_clock
+        if run_clock is not None:
+            run_clock.request("console closing")
         self._commands.put(None)
         if self._thread.is_alive():
             self._thread.join(timeout_s)
@@ -182,6 +210,8 @@ class RigWorker:
                 self._jog(command)
             elif command.kind == "home":
                 self._home(command)
+            elif command.kind == "protocol":
+                self._protocol(command)
             elif command.kind == "zero":
                 bias = self.rig.tare(TARE_SAMPLES)
                 self._on_event("info", "gauge zeroed; bias " + ", ".join(f"{v:+.3f}" for v in bias))
@@ -200,6 +230,7 @@ class RigWorker:
             self.activity = ""
             self._recover()
             self._publish_state(force=True)
+            self.commands_done += 1
 
     def _recover(self) -> None:
         """After a failed session the camera is closed and the gauge stream stopped (the
@@ -285,6 +316,41 @@ class RigWorker:
             m.home_axes(names)  # not interruptible from the page yet: Ctrl-C in the terminal is
         self._on_event("info", f"homed {command.axis or 'all axes'}")
 
+    def _protocol(self, command: Command) -> None:
+        from cli.console.protocol_run import InterruptibleClock, library_protocol, run_in_console
+
+        protocol = library_protocol(command.name, self.sensor, self.simulated)
+        origin = command.origin or (0.0, 0.0, 0.0, 0.0)
+        clock = InterruptibleClock(self.rig.clock)
+        self.activity = f"protocol {protocol.name} (STOP ends it)"
+        self._on_event("info", f"{command.who or 'console'}: protocol {protocol.name} from origin {origin}")
+        self._publish_state(force=True)
+        self._run_clock = clock
+        try:
+            out, result = run_in_console(
+                self.rig, self._sim, protocol, origin, self.runs_folder, clock, self._protocol_progress
+            )
+        finally:
+            self._run_clock = None
+        level = {"complete": "info", "interrupted": "warn"}.get(result.status, "error")
+        self._on_event(
+            level,
+            f"protocol {protocol.name}: {result.status}, {result.frames} frames in {out.name}"
+            + (f" ({result.reason})" if result.reason else ""),
+        )
+
+    def _protocol_progress(self, p) -> None:
+        """Each frame of a protocol running here: its wrench into the trace, the axes to the page.
+        Never raises: the page's view must not end a run (the executor's own checks do that)."""
+        try:
+            row = [self.rig.clock.now(), *(float(v) for v in p.wrench)]
+            self._wrench.append(row)
+            self._new_wrench.append(row)
+            self._publish_state(force=True)
+        except Exception:
+            self.errors_seen += 1
+            log.exception("console: showing the progress of a protocol failed")
+
     # -- reading ------------------------------------------------------------------------------
     def _io(self) -> None:
         """One round of reading: a new camera frame if there is one, the wrench, and (every
@@ -303,6 +369,8 @@ class RigWorker:
             return  # no new frame since the last look
         import cv2
 
+        if self.frame_tap is not None:
+            self.frame_tap(frame.index, frame.t_s, frame.image)
         ok, buffer = cv2.imencode(".jpg", frame.image, [cv2.IMWRITE_JPEG_QUALITY, JPEG_QUALITY])
         if not ok:
             self.errors_seen += 1

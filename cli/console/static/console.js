@@ -9,7 +9,11 @@ const PHASE_COLORS = ["#1f77b433", "#2ca02c33", "#ff7f0e33", "#9467bd33", "#8c56
 const HISTORY_S = 60;
 
 // What tests and the benchmark read: the page's own view of the rig.
-const state = { frames: 0, frameIndex: -1, frameT: null, wrench: null, axes: {}, control: null, events: [], run: null };
+const state = {
+  frames: 0, frameIndex: -1, frameT: null, wrench: null, axes: {}, control: null, events: [], run: null,
+  flow: null, flows: 0, runFlow: null, progress: [], progressPolls: 0,
+  progressEveryMs: 1000,  // how often the progress panel asks (a test may ask more often)
+};
 window.rigConsole = state;
 
 function chart(target, labels, unit, colors, hooks, xRange) {
@@ -28,7 +32,7 @@ function chart(target, labels, unit, colors, hooks, xRange) {
 }
 
 // ---- the live rig -------------------------------------------------------------------------
-const live = { ws: null, ref: null, wrench: [], forces: null, moments: null, limits: null, lastDraw: 0 };
+const live = { ws: null, ref: null, wrench: [], forces: null, moments: null, limits: null, lastDraw: 0, flowScale: 5 };
 
 function connect() {
   const ws = new WebSocket((location.protocol === "https:" ? "wss://" : "ws://") + location.host + "/ws");
@@ -82,9 +86,52 @@ async function drawFrame(buffer) {
   send({ type: "drawn", index: header.index, t_s: header.t_s });
 }
 
+// ---- marker flow: arrows from each reference marker along its motion, x scale ------------
+const MIN_ARROW_PX = 1;  // drawn length (after scaling) below which a marker counts as still
+
+function drawArrows(canvas, width, height, vectors, scale) {
+  if (canvas.width !== width || canvas.height !== height) { canvas.width = width; canvas.height = height; }
+  const ctx = canvas.getContext("2d");
+  ctx.clearRect(0, 0, width, height);
+  ctx.lineWidth = 1.2;
+  ctx.strokeStyle = "#00ff66";
+  let drawn = 0, sx = 0, sy = 0;
+  for (const [x, y, dx, dy] of vectors) {
+    sx += dx; sy += dy;
+    const ex = x + scale * dx, ey = y + scale * dy, len = Math.hypot(ex - x, ey - y);
+    if (len < MIN_ARROW_PX) continue;
+    drawn += 1;
+    const head = Math.min(4, 0.4 * len), a = Math.atan2(ey - y, ex - x);
+    ctx.beginPath();
+    ctx.moveTo(x, y); ctx.lineTo(ex, ey);
+    ctx.moveTo(ex, ey); ctx.lineTo(ex - head * Math.cos(a - 0.5), ey - head * Math.sin(a - 0.5));
+    ctx.moveTo(ex, ey); ctx.lineTo(ex - head * Math.cos(a + 0.5), ey - head * Math.sin(a + 0.5));
+    ctx.stroke();
+  }
+  const n = vectors.length || 1;
+  return { arrows: drawn, matched: vectors.length, meanDx: sx / n, meanDy: sy / n };
+}
+
+function clearOverlay(canvas) { canvas.getContext("2d").clearRect(0, 0, canvas.width, canvas.height); }
+
+function onFlow(m) {
+  if (!$("marker-flow").checked) return;
+  const frame = $("live-frame");
+  const summary = drawArrows($("flow-overlay"), frame.width, frame.height, m.vectors, m.scale);
+  state.flow = { index: m.index, markers: m.markers, ...summary };
+  state.flows += 1;
+  state.flowComputeMs = m.compute_ms;
+  const info = $("flow-info");
+  info.hidden = false;
+  info.textContent = `marker flow of frame #${m.index} against #${m.reference_index}, arrows ×${m.scale}: ` +
+    `${summary.arrows} of ${summary.matched} matched markers moved (of ${m.markers}); ` +
+    `mean motion ${summary.meanDx.toFixed(2)}, ${summary.meanDy.toFixed(2)} px (x right, y down)`;
+}
+
 function onMessage(m) {
   if (m.type === "state") onState(m);
   else if (m.type === "history") { live.wrench = m.wrench; plotWrench(); }
+  else if (m.type === "flow") onFlow(m);
   else if (m.type === "event") addEvent(m.level, `${m.at} ${m.text}`);
   else if (m.type === "control") setControl(m);
   else if (m.type === "refused") { $("control-msg").textContent = m.text; addEvent("warn", m.text); }
@@ -181,8 +228,10 @@ function plotWrench() {
   live.moments.setData([xs, ...[4, 5, 6].map((k) => rows.map((r) => r[k]))]);
 }
 
-function setUpLive() {
+function setUpLive(info) {
   $("live").hidden = false;
+  live.markerFlow = !!info.marker_flow;
+  $("marker-flow-label").hidden = !live.markerFlow;
   live.forces = chart($("live-forces"), COMPONENTS.slice(0, 3), "N", COLORS.slice(0, 3), {}, [-HISTORY_S, 0]);
   live.moments = chart($("live-moments"), COMPONENTS.slice(3), "N·mm", COLORS.slice(3), {}, [-HISTORY_S, 0]);
   $("take-control").onclick = () => send({ type: "take_control" });
@@ -190,7 +239,21 @@ function setUpLive() {
   $("stop").onclick = () => send({ type: "stop" });
   $("zero").onclick = () => send({ type: "zero" });
   $("home").onclick = () => send({ type: "home" });
-  $("set-reference").onclick = () => { live.ref = null; };
+  for (const name of info.protocols || []) {
+    const o = document.createElement("option");
+    o.value = name; o.textContent = name;
+    $("protocol-select").appendChild(o);
+  }
+  $("protocol-row").hidden = !(info.protocols || []).length;
+  $("run-protocol").onclick = () => {
+    const origin = $("protocol-origin").value.split(",").map((v) => Number(v.trim()));
+    send({ type: "run_protocol", name: $("protocol-select").value, origin });
+  };
+  $("set-reference").onclick = () => { live.ref = null; if (live.markerFlow) send({ type: "set_reference" }); };
+  $("marker-flow").onchange = (e) => {
+    send({ type: "flow", on: e.target.checked });
+    if (!e.target.checked) { clearOverlay($("flow-overlay")); $("flow-info").hidden = true; state.flow = null; }
+  };
   document.addEventListener("keydown", onKey);
   connect();
 }
@@ -263,6 +326,8 @@ async function openRun(name) {
   const fresh = browser.name !== name;
   browser.name = name; browser.run = run; state.run = run;
   $("run-view").hidden = false;
+  $("run-flow-label").hidden = !run.sensor.endsWith("_markers");
+  if (!run.sensor.endsWith("_markers")) $("run-flow").checked = false;
   $("run-info").textContent = `${run.protocol} · ${run.object} · ${run.sensor} · ${run.frames}/${run.frames_planned} frames · ${run.status}` +
     (run.reason ? ` (${run.reason})` : "") + ` · phases: ${run.phases.join(", ")}`;
   const slider = $("run-slider");
@@ -302,19 +367,117 @@ function showFrame(i) {
     `   pose x ${p[0].toFixed(3)} y ${p[1].toFixed(3)} z ${p[2].toFixed(3)} θ ${p[3].toFixed(2)}`;
   $("run-wrench").dataset.index = String(i);
   browser.charts.forEach((c) => c.redraw(false));
+  showRunFlow(i);
+}
+
+async function showRunFlow(i) {
+  const overlay = $("run-flow-overlay");
+  if (!$("run-flow").checked) { clearOverlay(overlay); state.runFlow = null; $("run-frame-caption").textContent = "frame"; return; }
+  const name = browser.name;
+  const m = await (await fetch(`api/run/flow?i=${i}&name=${encodeURIComponent(name)}`)).json();
+  if (name !== browser.name || Number($("run-slider").value) !== i) return;  // the slider moved on
+  if (m.error) { $("run-frame-caption").textContent = m.error; return; }
+  const run = browser.run;
+  const img = $("run-frame");
+  const summary = drawArrows(overlay, img.naturalWidth || 256, img.naturalHeight || 256, m.vectors, m.scale);
+  state.runFlow = { index: i, markers: m.markers, ...summary };
+  $("run-frame-caption").textContent = `frame, marker flow ×${m.scale} against the reference ` +
+    `(${summary.arrows} of ${m.markers} markers moved)` + (run ? "" : "");
+}
+
+// ---- runs in progress: `rig run-protocol` writing into a listed folder -------------------
+function fmtDuration(s) {
+  s = Math.max(0, Math.round(s));
+  const h = Math.floor(s / 3600), m = Math.floor((s % 3600) / 60), sec = s % 60;
+  return (h ? `${h}h${String(m).padStart(2, "0")}m` : `${m}m`) + `${String(sec).padStart(2, "0")}s`;
+}
+
+function progressCard(p, i) {
+  let card = $(`progress-${i}`);
+  if (!card) {
+    card = document.createElement("div");
+    card.id = `progress-${i}`;
+    card.innerHTML = `<img alt="latest frame"><div><div class="title"></div><progress max="1" value="0"></progress>` +
+      `<table class="facts"><tbody></tbody></table><p class="mono pair"></p>` +
+      `<button type="button">open in the run browser</button></div>`;
+    $("progress-list").appendChild(card);
+  }
+  card.className = "progress-card" + (p.finished ? " finished" : "") + (p.stale ? " stale" : "");
+  card.dataset.run = p.run;
+  card.querySelector("button").onclick = async () => { $("run-select").value = p.run; await listRuns(p.run); };
+  const title = card.querySelector(".title");
+  if (p.error) { title.textContent = p.error; title.className = "title error"; return; }
+  title.className = "title";
+  const rows = [];
+  if (p.finished) {
+    title.textContent = `${p.run}: ended`;
+    rows.push(["status", `${p.file_status}${p.file_reason ? " — " + p.file_reason : ""}`]);
+    rows.push(["frames", `${p.committed} / ${p.frames_planned}`]);
+  } else {
+    title.textContent = `${p.protocol} → ${p.run}` + (p.stale ? ` — no update for ${fmtDuration(p.age_s)}: the writer stopped?` : "");
+    if (p.stale) title.className = "title error";
+    const depth = p.depth_mm === null ? "" : ` (depth ${p.depth_mm.toFixed(2)} mm)`;
+    rows.push(["phase", p.phase], ["level", `${p.level}${depth}`], ["frame", `${p.frame} / ${p.frames}`],
+      ["ETA", `${fmtDuration(p.eta_s)} (protocol time ${p.t_protocol_s.toFixed(0)} of ${p.duration_s.toFixed(0)} s)`],
+      ["updated", `${p.age_s.toFixed(1)} s ago`]);
+    card.querySelector("progress").value = p.frame / p.frames;
+  }
+  if (p.finished) card.querySelector("progress").value = p.frames_planned ? p.committed / p.frames_planned : 1;
+  const body = card.querySelector("tbody");
+  body.innerHTML = "";
+  for (const [k, v] of rows) {
+    const tr = document.createElement("tr");
+    tr.className = `fact-${k.toLowerCase()}`;
+    tr.innerHTML = "<td></td><td></td>";
+    tr.children[0].textContent = k; tr.children[1].textContent = v;
+    body.appendChild(tr);
+  }
+  const pair = card.querySelector(".pair");
+  if (p.file_error) pair.textContent = p.file_error;
+  else if (p.committed > 0 && p.latest_wrench) {
+    const w = p.latest_wrench, q = p.latest_pose;
+    pair.textContent = `latest pair, frame ${p.committed - 1}: ` + COMPONENTS.map((c, k) => `${c} ${w[k].toFixed(3)}`).join("  ") +
+      `   pose x ${q[0].toFixed(3)} y ${q[1].toFixed(3)} z ${q[2].toFixed(3)} θ ${q[3].toFixed(2)}`;
+    const img = card.querySelector("img");
+    const want = p.committed - 1;
+    if (img.dataset.index !== String(want)) {
+      const src = `api/run/image?kind=frame&i=${want}&name=${encodeURIComponent(p.run)}`;
+      img.onload = () => { img.dataset.index = String(want); };
+      img.src = src;
+    }
+  } else pair.textContent = "no frame committed yet";
+}
+
+async function pollProgress() {
+  try {
+    const list = await (await fetch("api/progress")).json();
+    state.progress = list;
+    state.progressPolls += 1;
+    $("progress").hidden = list.length === 0;
+    const cards = $("progress-list");
+    while (cards.children.length > list.length) cards.removeChild(cards.lastChild);
+    list.forEach(progressCard);
+    const runs = Array.from($("run-select").options).map((o) => o.value);
+    if (list.some((p) => !runs.includes(p.run))) listRuns();  // a new run file appeared
+  } catch (e) {
+    // the server is gone or restarting: keep polling, the link pill says the rest
+  }
+  setTimeout(pollProgress, state.progressEveryMs);
 }
 
 function setUpBrowser(openName) {
   $("run-select").onchange = (e) => openRun(e.target.value);
   $("run-refresh").onclick = () => listRuns();
   $("run-slider").oninput = (e) => showFrame(Number(e.target.value));
+  $("run-flow").onchange = () => showRunFlow(Number($("run-slider").value));
   listRuns(openName);
 }
 
 (async function main() {
   const info = await (await fetch("api/info")).json();
   if (info.rig_error) { const e = $("rig-error"); e.hidden = false; e.textContent = info.rig_error; }
-  if (info.live) setUpLive();
+  if (info.live) setUpLive(info);
   else { setPill($("link-status"), "run browser only", ""); $("control-status").hidden = true; }
   setUpBrowser(info.open_run);
+  pollProgress();
 })();
