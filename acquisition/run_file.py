@@ -151,14 +151,12 @@ class RunWriter:
         self.lock = lock
         self.n = f[S.FRAMES].shape[0]
         self._frames = f[S.FRAMES]
-        self._frame_shape = self._frames.shape[1:]
         # the fields this file has: an older file lacks the optional ones added since
         self._rows = {fl.path: f[fl.path] for fl in S.PER_FRAME_FIELDS if fl.path in f}
         self._rows_len = min(d.shape[0] for d in self._rows.values())
         self._stream = f.get(S.WRENCH_STREAM)
         self._stream_n = self._stream.shape[0] if self._stream is not None else 0  # rows counted
         self.phases = decode_phases(f)
-        self._row_spaces: dict[str, tuple] = {}  # per row dataset: (memory space, file space) of one row
         self._failure = ""  # set when a write failed: the file is closed with it as its reason
 
     @classmethod
@@ -316,7 +314,6 @@ class RunWriter:
         return True
 
     def _truncate_to(self, n: int) -> None:
-        self._row_spaces = {}
         for d in [self._frames, *self._rows.values()]:
             if d.shape[0] != n:
                 d.resize(n, axis=0)
@@ -367,8 +364,8 @@ class RunWriter:
             raise RunFileError(f"{self.path}: {self._failure}")
         i = self.n
         frames = self._frames
-        if frame.shape != self._frame_shape:
-            raise RunFileError(f"{self.path}: frame shape {frame.shape} differs from the run's {self._frame_shape}")
+        if frame.shape != frames.shape[1:]:
+            raise RunFileError(f"{self.path}: frame shape {frame.shape} differs from the run's {frames.shape[1:]}")
         self._check_row(i, row)
         self._check_space(i, frame.nbytes)
         try:
@@ -383,34 +380,16 @@ class RunWriter:
                 for d in self._rows.values():
                     d.resize(i + ROW_BLOCK, axis=0)
                 self._rows_len = i + ROW_BLOCK
-                self._row_spaces = {}  # the datasets grew: their file spaces are new
             for name, d in self._rows.items():
-                self._write_row(name, d, i, row[name])
+                d[i] = row[name]
             frames.resize(i + 1, axis=0)
             frames[i] = frame
             self.f.flush()
         except (OSError, RuntimeError) as exc:  # h5py reports a failed flush as RuntimeError
             raise self._fail(i, exc) from None
         self.n = i + 1
-        if stream is not None and len(stream) and self._stream is not None:
-            self._stream_n += len(stream)
-
-    def _write_row(self, name: str, d: h5py.Dataset, i: int, value) -> None:
-        """``d[i] = value`` through h5py's low-level write: the same bytes in the same
-        chunk, without the high-level indexing (ten fields a frame, most of the writer's
-        Python time). The value is converted to the field's dtype as ``d[i] =`` would,
-        a wrong shape refused as it would be."""
-        cached = self._row_spaces.get(name)
-        if cached is None:  # h5py's Dataset.shape and .dtype ask HDF5 each time: once per block
-            shape = d.shape[1:]
-            cached = (h5py.h5s.create_simple((1, *shape)), d.id.get_space(), d.dtype, shape, (0,) * len(shape))
-            self._row_spaces[name] = cached
-        memory, file, dtype, shape, zeros = cached
-        data = np.asarray(value, dtype=dtype)
-        if data.shape != shape:
-            raise ValueError(f"{self.path}: {name}: value of shape {data.shape}, the field is {shape}")
-        file.select_hyperslab((i, *zeros), (1, *shape))
-        d.id.write(memory, file, np.ascontiguousarray(data).reshape(1, *shape))
+        if self._stream is not None:
+            self._stream_n = self._stream.shape[0]
 
     def _check_row(self, i: int, row: Mapping) -> None:
         """Every field of this file in ``row``, nothing outside the schema's table (a typo

@@ -16,8 +16,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.fft as sfft
 
-from sensor_sim.kernels import Kernels, irfft2_full, rfft2_padded
+from sensor_sim.kernels import Kernels
 from sensor_sim.stall import StallWatch
 
 # Stalled: the residual has not halved in this many iterations. FISTA's slowest
@@ -57,9 +58,9 @@ def _displacement(kernels: Kernels, precise: bool):
     shape, ny, nx = kernels.shape, kernels.ny, kernels.nx
 
     def apply(qx: np.ndarray, qy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        f = rfft2_padded(np.stack((qx, qy)).astype(dtype, copy=False), shape)
+        f = sfft.rfft2(np.stack((qx, qy)).astype(dtype, copy=False), s=shape, axes=(-2, -1), workers=1)
         u_hat = np.stack((kxx * f[0] + kxy * f[1], kxy * f[0] + kyy * f[1]))
-        u = irfft2_full(u_hat, shape)[:, :ny, :nx]
+        u = sfft.irfft2(u_hat, s=shape, axes=(-2, -1), workers=1)[:, :ny, :nx]
         return u[0].astype(np.float64), u[1].astype(np.float64)
 
     return apply

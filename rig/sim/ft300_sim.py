@@ -95,4 +95,4 @@ class Ft300Sim(RtuServer):
             self._stream_at_first_tick = False
             self.schedule.start(now_s)
         times = self.schedule.due(now_s)
-        return ft.encode_stream_frames(self.world.gauge_samples(times)) if times else []
+        return [ft.encode_stream_frame(w) for w in self.world.gauge_samples(times)]

@@ -131,14 +131,6 @@ class SimServer:
                     self._conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
                     continue
                 conn = self._conn  # tcp: the accepted connection (the listening socket was handled above)
-                if self._discrete and conn is None and not self.faults.stall_armed:
-                    # The host's thread may serve its own request (serve_now): take and answer
-                    # under the model lock, in one go, whatever it left on the line.
-                    try:
-                        self.serve_now(force=True)
-                    except OSError:
-                        return
-                    continue
                 try:
                     data = os.read(self._master, 65536) if conn is None else conn.recv(65536)
                 except OSError:
@@ -155,26 +147,6 @@ class SimServer:
                     self._queue(self.model.feed(data, self.clock.now()))
                     self._processed_in += len(data)
             self.pump()
-
-    def serve_now(self, *, force: bool = False) -> bool:
-        """Take what the host has written and answer it, in the calling thread; True if
-        there was something. On the discrete clock a driver waiting for its reply calls
-        this (rig/transport/serial_link.py): the same bytes through the same pty, without
-        handing the request to this server's thread and the reply back (two thread
-        switches per exchange, each a scheduler slice on a loaded machine). A pty only, and
-        never while a stall is armed: a stall is this thread's, starved of CPU."""
-        if not (self._discrete and self.transport == "pty") or (self.faults.stall_armed and not force):
-            return False
-        with self._model_lock:
-            fd = self._master
-            if fd < 0 or not select.select([fd], [], [], 0)[0]:
-                return False
-            data = os.read(fd, 65536)
-            self.bytes_in += len(data)
-            self._queue(self.model.feed(data, self.clock.now()))
-            self._processed_in += len(data)
-            self.pump()
-        return True
 
     def _real_s_until(self, t_clock: float) -> float:
         """Real seconds until clock time ``t_clock`` (a discrete clock is pumped on advance)."""
