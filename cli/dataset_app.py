@@ -79,12 +79,16 @@ def validate(
 ):
     """Check every dataset and attribute of the schema, every checksum, every frame (black, constant, saturated),
     NaN/inf, time order, capture indices, status and reason, skew; one line per finding; exit 1 on findings."""
+    from common.eta import Eta
     from dataset.runs import check_run
 
     bad = 0
-    for path in paths:
+    sizes = [Path(p).stat().st_size if Path(p).is_file() else 0 for p in paths]  # reading time goes with bytes
+    eta = Eta(sum(sizes) or 1)
+    for i, path in enumerate(paths):
         result = check_run(path, max_skew_s=max_skew_s, sample_frames=sample)
-        typer.echo(f"{path}: {'ok' if not result.findings else f'{len(result.findings)} finding(s)'}")
+        progress = f"  ({i + 1}/{len(paths)} files, {eta.line(sum(sizes[: i + 1]) or 1)})"
+        typer.echo(f"{path}: {'ok' if not result.findings else f'{len(result.findings)} finding(s)'}{progress}")
         for item in result.findings:
             typer.echo(f"  {path}: {item}")
         for item in result.notes:
@@ -107,10 +111,20 @@ def split(
     allow_incomplete: Annotated[
         bool, typer.Option(help="Use aborted or interrupted runs too (with a warning).")
     ] = False,
+    hold_out: Annotated[
+        Optional[str],
+        typer.Option(
+            help="Objects never seen in training, comma-separated (heart,ring): all their frames form the part "
+            "test_object; the other objects are split by RATIO and --by frame or run as usual. Default: none."
+        ),
+    ] = None,
 ):
     """Split runs deterministically; wrench statistics come from the training part only."""
     from dataset.split import make_split
 
+    held = [name for name in (hold_out or "").split(",") if name.strip()]
+    if hold_out is not None and not held:
+        raise typer.BadParameter(f"--hold-out {hold_out!r}: expected object names joined by ',' such as heart,ring")
     result = make_split(
         paths,
         ratio,
@@ -118,10 +132,13 @@ def split(
         seed=seed,
         by=by,
         allow_incomplete=allow_incomplete,
+        hold_out=held,
         warn=lambda m: typer.secho(m, fg=typer.colors.YELLOW, err=True),
     )
     sizes = ", ".join(f"{k} {len(v)}" for k, v in result.parts.items())
     typer.echo(f"{out}: {sizes} frames from {len(result.runs)} run(s) (by {by}, seed {seed})")
+    if held:
+        typer.echo(f"  held out (test_object): {', '.join(sorted(set(held)))}")
 
 
 @app.command()

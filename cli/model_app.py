@@ -9,6 +9,16 @@ import typer
 
 app = typer.Typer(add_completion=False)
 
+Threads = Annotated[
+    Optional[int],
+    typer.Option(
+        help="torch CPU threads (default: one per core not busy with other processes, model/threads.py; or the "
+        "TACTILE_TORCH_THREADS environment variable).",
+        min=1,
+        max=256,
+    ),
+]
+
 
 def one_line_errors(fn):
     """Expected failures (bad files, values, checkpoints, splits) become one red line and exit 1."""
@@ -51,7 +61,12 @@ def train(
     image_size: Annotated[Optional[int], typer.Option(help="Image side in px (default: the preset's).", min=8)] = None,
     conditioning: Annotated[
         Optional[str],
-        typer.Option(help="Wrench conditioning: plane, embedding or plane+embedding (default: the preset's)."),
+        typer.Option(
+            help="Condition components joined by +: plane (the paper's H(F)), embedding (a learned wrench "
+            "embedding), physics (the simulator's render at each frame's measured pose; library objects only), e.g. "
+            "plane+embedding or physics+plane+embedding. Default: the config's, else the measured best for the "
+            "split's sensor kind (docs/model.md)."
+        ),
     ] = None,
     prediction: Annotated[
         Optional[str],
@@ -84,6 +99,7 @@ def train(
         Optional[str],
         typer.Option(help="cpu or cuda (default: cuda when available; under `accelerate launch`, each process's GPU)."),
     ] = None,
+    threads: Threads = None,
 ):
     """Train the denoiser; progress shows the loss and images/s; checkpoints are safetensors.
 
@@ -95,6 +111,7 @@ def train(
     from model.config import PRESET_TRAINING
     from model.config import preset as make_preset
     from model.config_file import load_model_file
+    from model.threads import set_threads
     from model.trainer import TrainConfig
 
     if config is not None:
@@ -106,6 +123,8 @@ def train(
         for k, v in (("image_size", image_size), ("conditioning", conditioning), ("prediction", prediction))
         if v is not None
     }
+    if conditioning is None and not _names_conditioning(config):
+        model_over["conditioning"] = _default_conditioning(data)
     if model_over:
         model_cfg = dataclasses.replace(model_cfg, **model_over)
     given = {
@@ -118,8 +137,10 @@ def train(
         "mixed_precision": mixed_precision,
     }
     cfg = TrainConfig(**{**train_fields, **{k: v for k, v in given.items() if v is not None}})
+    threads_line = set_threads(threads)  # before anything runs; said once the run is set up (one-line errors)
     trainer = build(model_cfg, cfg, data, out, device=device, log=typer.echo)
     say = typer.echo if trainer.is_main else (lambda line: None)
+    say(threads_line)
     if resume:
         trainer.resume()
         say(f"resumed at step {trainer.step}")
@@ -130,6 +151,37 @@ def train(
     )
     trainer.train()
     say(f"checkpoint: {trainer.save()}")
+
+
+def _names_conditioning(config: Path | None) -> bool:
+    """Whether a model TOML sets [model] conditioning (then it wins over the per-sensor default)."""
+    import tomllib
+
+    if config is None:
+        return False
+    try:
+        return "conditioning" in tomllib.loads(config.read_text()).get("model", {})
+    except (OSError, tomllib.TOMLDecodeError, AttributeError):
+        return False  # load_model_file reports the bad file in one line
+
+
+def _default_conditioning(split: Path) -> str:
+    """The measured best conditioning for the split's sensor kind (model/config.py); plane+embedding,
+    said in a line, where that is physics and the simulator cannot render the split's runs."""
+    from dataset.split import load_split
+    from model.config import ModelConfig, default_conditioning
+    from model.physics_condition import PhysicsUnavailable, split_spec
+
+    manifest, _ = load_split(split)
+    kinds = {str(r.get("sensor", "")) for r in manifest["runs"]}
+    best = default_conditioning(kinds.pop() if len(kinds) == 1 else "")
+    if ModelConfig(conditioning=best).uses_physics:
+        try:
+            split_spec(split)
+        except PhysicsUnavailable as exc:
+            typer.echo(f"conditioning plane+embedding, not the default {best}: {exc}")
+            return "plane+embedding"
+    return best
 
 
 generate_app = typer.Typer(add_completion=False)
@@ -163,7 +215,13 @@ def generate(
     wrench: Annotated[
         Optional[str], typer.Option(help="Fx,Fy,Fz (N),Mx,My,Mz (N·mm); needed unless --split (default: none).")
     ] = None,
-    pose: Annotated[str, typer.Option(help="x,y (mm),theta (deg) of the object on the sensor.")] = "0,0,0",
+    pose: Annotated[
+        str,
+        typer.Option(
+            help="x,y (mm),theta (deg) of the object on the sensor, or x,y,z (mm),theta: a physics-conditioned model "
+            "needs z, the depth from the contact point (negative into the gel)."
+        ),
+    ] = "0,0,0",
     split: Annotated[
         Optional[Path],
         typer.Option(
@@ -189,13 +247,16 @@ def generate(
         ),
     ] = None,
     device: Annotated[Optional[str], typer.Option(help="cpu or cuda (default: cuda when available).")] = None,
+    threads: Threads = None,
 ):
     """Generate a tactile frame for an object, a wrench and a pose, or every frame of a split."""
     import cv2
     import numpy as np
 
     from model.inference import TrainedModel
+    from model.threads import set_threads
 
+    set_threads(threads)  # the output stays the frame's line (or one error line)
     model = TrainedModel.load(checkpoint, _device(device))
     if split is not None:
         written = model.generate_split(
@@ -206,9 +267,18 @@ def generate(
     if object_image is None or wrench is None:
         raise typer.BadParameter("give --object and --wrench, or --split")
     w = _numbers(wrench, 6, "--wrench")
-    p = _numbers(pose, 3, "--pose")
+    p = _numbers(pose, 4 if pose.count(",") == 3 else 3, "--pose")
     img = _object_image(object_image, model.frame_px, model.mm_per_px)
-    frame = model.generate(img, np.asarray(w), p, steps=steps, sampler=sampler, seed=seed, guidance=guidance)
+    frame = model.generate(
+        img,
+        np.asarray(w),
+        p,
+        steps=steps,
+        sampler=sampler,
+        seed=seed,
+        guidance=guidance,
+        object_name=_object_name(object_image) if model.cfg.uses_physics else None,
+    )
     native = frame.shape[0]
     note = f"the model's own size, {native}x{native}"
     if size is not None and size != native:
@@ -258,6 +328,23 @@ def _object_image(source: str, frame_px: int, mm_per_px: float):
     return get_indenter(source).object_image(frame_px, mm_per_px)
 
 
+def _object_name(source: str) -> str:
+    """The library object --object names (itself, or a run file's object) for the physics render."""
+    path = Path(source)
+    if path.suffix.lower() in (".h5", ".hdf5"):
+        from acquisition import schema as S
+        from acquisition.run_file import open_for_reading
+
+        with open_for_reading(path) as f:
+            return str(f.attrs.get(S.ATTR_OBJECT, ""))
+    if path.suffix:
+        raise ValueError(
+            f"--object {path}: this model is conditioned on the physics render; give a library object name or a "
+            "run file of one (the simulator needs the object's shape, not its picture)"
+        )
+    return source
+
+
 def _write_png(path: Path, image) -> None:
     """Write an image, creating its folder; a failed write is an error, never a silent success."""
     import cv2
@@ -279,7 +366,10 @@ evaluate_app = typer.Typer(add_completion=False)
 @one_line_errors
 def evaluate(
     checkpoint: Annotated[Path, typer.Option(help="A run directory written by `train`.")],
-    split: Annotated[Path, typer.Option(help="The split directory; its test part is evaluated.")],
+    split: Annotated[
+        Path,
+        typer.Option(help="The split directory; its test parts are evaluated (test, and test_object if it has one)."),
+    ],
     out: Annotated[Path, typer.Option(help="Folder for report.md, metrics.json and the figures (PNG).")],
     settings: Annotated[
         str,
@@ -288,10 +378,27 @@ def evaluate(
             "point on the error-against-run-time plot."
         ),
     ] = "ddim:10,ddim:25,ddim:50",
-    part: Annotated[str, typer.Option(help="The split part to evaluate.")] = "test",
-    limit: Annotated[
-        Optional[int], typer.Option(help="At most this many frames, spread evenly over the part (default: all).", min=1)
+    part: Annotated[
+        Optional[str],
+        typer.Option(
+            help="The split part to evaluate (default: every test part the split has: test, and test_object, "
+            "the objects held out of training by `dataset split --hold-out`), each a section of one report."
+        ),
     ] = None,
+    limit: Annotated[
+        Optional[int],
+        typer.Option(help="At most this many frames of each part, spread evenly over it (default: all).", min=1),
+    ] = None,
+    force_sweep: Annotated[
+        bool,
+        typer.Option(
+            help="The force-response check: at a few test poses, sweep Fz, Fx, Fy and Mz over their training "
+            "range and measure the generated contact's area, centroid and shading against real frames at "
+            "matching force (or the physics render); generated with the first --settings entry."
+        ),
+    ] = True,
+    sweep_poses: Annotated[int, typer.Option(help="Poses of each part the force sweep is made at.", min=1)] = 3,
+    sweep_points: Annotated[int, typer.Option(help="Values of each wrench component per sweep.", min=2)] = 7,
     markers: Annotated[
         Optional[bool],
         typer.Option(
@@ -312,22 +419,27 @@ def evaluate(
             dir_okay=False,
         ),
     ] = None,
+    threads: Threads = None,
 ):
     """MSE, MAE, SSIM, PSNR (and marker error) per sampler setting against seconds per image, beside the
     physics render and the paper's table."""
     import torch
 
-    from model.evaluate import evaluate as run
-    from model.evaluate import report
+    from model.evaluate import SweepOptions, evaluate_parts, report
+    from model.threads import set_threads
 
+    set_threads(threads)  # the report's context states the count
     try:
         pairs = [(s.split(":")[0], int(s.split(":")[1])) for s in settings.split(",")]
     except (IndexError, ValueError):
         raise typer.BadParameter(f"--settings: expected sampler:steps[,sampler:steps...], got {settings!r}") from None
-    ev = run(
+    if any(steps < 1 for _, steps in pairs):
+        raise typer.BadParameter(f"--settings {settings!r}: every step count must be at least 1")
+    sweep = SweepOptions(sweep_poses, sweep_points, pairs[0][0], pairs[0][1]) if force_sweep else None
+    evs = evaluate_parts(
         checkpoint,
         split,
-        part=part,
+        parts=[part] if part else None,
         settings=pairs,
         limit=limit,
         markers=markers,
@@ -337,14 +449,17 @@ def evaluate(
         device=device or ("cuda" if torch.cuda.is_available() else "cpu"),
         log=typer.echo,
         profile=profile,
+        sweep=sweep,
     )
-    for r in ev.rows + ([ev.baseline] if ev.baseline else []):
-        mk = "" if r.marker_px is None else f"  markers {r.marker_px:.2f} px"
-        typer.echo(
-            f"{r.setting:>16}: MSE {r.mse:7.2f}  MAE {r.mae:5.2f}  SSIM {r.ssim:.3f}  PSNR {r.psnr:5.2f}"
-            f"{mk}  {r.seconds_per_image:.4f} s/image"
-        )
-    typer.echo(f"report: {report(ev, out, title=f'Evaluation of {checkpoint} on {split} ({part})')}")
+    for ev in evs:
+        for r in ev.rows + ([ev.baseline] if ev.baseline else []):
+            mk = "" if r.marker_px is None else f"  markers {r.marker_px:.2f} px"
+            typer.echo(
+                f"{ev.part:>11} {r.setting:>16}: MSE {r.mse:7.2f}  MAE {r.mae:5.2f}  SSIM {r.ssim:.3f}  "
+                f"PSNR {r.psnr:5.2f}{mk}  {r.seconds_per_image:.4f} s/image"
+            )
+    parts = ", ".join(ev.part for ev in evs)
+    typer.echo(f"report: {report(evs, out, title=f'Evaluation of {checkpoint} on {split} ({parts})')}")
 
 
 def main() -> None:

@@ -1,8 +1,14 @@
-"""Deterministic splits of run files: by frame, by run or by object.
+"""Deterministic splits of run files: by frame, by run or by object, with held-out objects.
 
-A split directory holds ``split.json`` (the runs, the ratios, the seed, the wrench
-statistics of the training part) and one ``NAME.npy`` per part: (n, 2) int32 rows of
-(run index, frame index). Training and evaluation read exactly those frames.
+A split directory holds ``split.json`` (the runs, the ratios, the seed, the objects of
+each part, the wrench statistics of the training part) and one ``NAME.npy`` per part:
+(n, 2) int32 rows of (run index, frame index). Training and evaluation read exactly
+those frames.
+
+``hold_out`` names objects whose every frame goes to one more part, ``test_object``;
+the other objects' frames are split by the ratio as usual. One split then measures
+both: ``test`` (unseen frames of the training objects) and ``test_object`` (objects
+never seen in training).
 """
 
 from __future__ import annotations
@@ -22,6 +28,9 @@ from dataset.runs import open_run, summarize
 
 MANIFEST = "split.json"
 PART_NAMES = {2: ("train", "test"), 3: ("train", "val", "test")}
+HELD_OUT_PART = "test_object"  # every frame of the held-out objects
+TEST_PARTS = ("test", HELD_OUT_PART)  # the parts evaluation reports on, when present
+PERCENTILES = (2, 50, 98)  # of the training wrench, per component: the range a force sweep covers
 
 
 class SplitError(ToolError):
@@ -89,10 +98,18 @@ def make_split(
     seed: int = 0,
     by: str = "frame",
     allow_incomplete: bool = False,
+    hold_out: Sequence[str] = (),
     warn=print,
 ) -> Split:
+    """``hold_out``: object names whose frames all go to the ``test_object`` part (see the module docstring)."""
     if by not in ("frame", "run", "object"):
         raise SplitError(f"--by must be frame, run or object, got {by!r}")
+    held = sorted({name.strip() for name in hold_out if name.strip()})
+    if held and by == "object":
+        raise SplitError(
+            f"--hold-out {','.join(held)} with --by object: --hold-out names the test objects itself; split the "
+            "other objects' frames --by frame (default) or --by run"
+        )
     ratios = parse_ratios(ratios_text)
     names = PART_NAMES[len(ratios)]
     summaries = [summarize(p) for p in paths]
@@ -112,6 +129,18 @@ def make_split(
     rows = np.concatenate(
         [np.stack([np.full(s.frames, i), np.arange(s.frames)], axis=1) for i, s in enumerate(summaries)]
     ).astype(np.int32)
+    held_rows = np.zeros((0, 2), np.int32)
+    if held:
+        present = sorted({s.object_name for s in summaries})
+        unknown = [name for name in held if name not in present]
+        if unknown:
+            raise SplitError(
+                f"--hold-out {','.join(unknown)}: no run of that object; the runs hold {', '.join(present)}"
+            )
+        if set(held) == set(present):
+            raise SplitError(f"--hold-out {','.join(held)}: that is every object; keep at least one to train on")
+        is_held = np.array([s.object_name in held for s in summaries])
+        held_rows, rows = rows[is_held[rows[:, 0]]], rows[~is_held[rows[:, 0]]]
     rng = np.random.default_rng(seed)
     if by == "frame":
         sizes = _allocate(len(rows), ratios)
@@ -121,7 +150,7 @@ def make_split(
         parts = {name: part[np.lexsort((part[:, 1], part[:, 0]))] for name, part in zip(names, chosen)}
     else:
         keys = [s.path if by == "run" else s.object_name for s in summaries]
-        groups = sorted(set(keys))
+        groups = sorted({k for k, s in zip(keys, summaries) if s.object_name not in held})
         sizes = _allocate(len(groups), ratios, what=by)
         shuffled = [groups[i] for i in rng.permutation(len(groups))]
         assignment, start = {}, 0
@@ -129,8 +158,10 @@ def make_split(
             for g in shuffled[start : start + size]:
                 assignment[g] = name
             start += size
-        run_part = np.array([names.index(assignment[k]) for k in keys])
+        run_part = np.array([names.index(assignment[k]) if k in assignment else -1 for k in keys])
         parts = {name: rows[run_part[rows[:, 0]] == j] for j, name in enumerate(names)}
+    if held:
+        parts[HELD_OUT_PART] = held_rows
     train = parts["train"]
     wrench = np.concatenate(
         [_wrenches(summaries[i].path, train[train[:, 0] == i][:, 1]) for i in range(len(summaries))]
@@ -138,6 +169,10 @@ def make_split(
     mean = wrench.mean(axis=0) if len(wrench) else np.zeros(6)
     std = wrench.std(axis=0) if len(wrench) else np.ones(6)
     std = np.where(std > 1e-9, std, 1.0)
+    pct = np.percentile(wrench, PERCENTILES, axis=0) if len(wrench) else np.zeros((len(PERCENTILES), 6))
+    objects = {
+        name: sorted({summaries[int(r)].object_name for r in np.unique(part[:, 0])}) for name, part in parts.items()
+    }
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     for name, part in parts.items():
@@ -160,8 +195,11 @@ def make_split(
             for s in summaries
         ],
         "parts": {name: int(len(part)) for name, part in parts.items()},
+        "held_out_objects": held,
+        "objects": objects,
         "wrench_mean": mean.tolist(),
         "wrench_std": std.tolist(),
+        "wrench_percentiles": {f"p{q}": row.tolist() for q, row in zip(PERCENTILES, pct)},
         "wrench_stats_from": "train",
     }
     (out / MANIFEST).write_text(json.dumps(manifest, indent=2) + "\n")

@@ -4,7 +4,8 @@ Imports torch: used by training only, never by the other `dataset` commands. HDF
 files are opened lazily in each worker process (h5py handles do not survive fork),
 read with SWMR, and kept open for the worker's life. Besides the model's inputs, an
 item carries any per-frame fields of the run-file table asked for (``fields=``), so a
-field added to the table reaches training without touching this module.
+field added to the table reaches training without touching this module, and the physics
+render of each frame when a cache of them is given (``physics=``, model/physics_condition.py).
 """
 
 from __future__ import annotations
@@ -51,12 +52,21 @@ def spread(length: int, n: int | None) -> np.ndarray:
     return np.unique(np.linspace(0, length - 1, n).round().astype(int))
 
 
+def condition_of(batch: dict) -> torch.Tensor:
+    """The model's condition channels of an item or a collated batch (uint8): the object image,
+    then the physics render when the item carries one (3 or 6 channels)."""
+    if "physics" not in batch:
+        return batch["condition"]
+    return torch.cat([batch["condition"], batch["physics"]], dim=-3)
+
+
 def to_model_inputs(batch: dict, device=None) -> dict:
     """uint8 images → float in [−1, 1] on ``device`` (the GPU, in training): 4× less data
     crosses from the loader's workers than if they sent floats."""
     out = dict(batch)
-    for key in ("condition", "tactile"):
-        out[key] = scale_images(batch[key].to(device, non_blocking=True))
+    for key in ("condition", "tactile", "physics"):
+        if key in batch:
+            out[key] = scale_images(batch[key].to(device, non_blocking=True))
     out["wrench"] = batch["wrench"].to(device, non_blocking=True)
     return out
 
@@ -66,9 +76,19 @@ class TactileDataset(Dataset):
     part's statistics, tactile (3, s, s) uint8, pose (4,), run, frame). Images are RGB;
     ``to_model_inputs`` scales them to [−1, 1]. ``fields``: per-frame fields of the run-file
     table (acquisition/schema.py) added to each item under their names, as tensors; a run
-    written before an optional field existed serves its fill value."""
+    written before an optional field existed serves its fill value. ``physics``: a cache of the
+    part's physics renders (model/physics_condition.py's ``physics_cache``, a .npy of
+    (frames, size, size, 3) BGR uint8 in row order) served as ``physics`` (3, s, s) RGB uint8.
+    Each item also names its run file (``run_path``)."""
 
-    def __init__(self, split_dir: str | Path, part: str = "train", size: int = 256, fields: tuple[str, ...] = ()):
+    def __init__(
+        self,
+        split_dir: str | Path,
+        part: str = "train",
+        size: int = 256,
+        fields: tuple[str, ...] = (),
+        physics: str | Path | None = None,
+    ):
         self.manifest, parts = load_split(split_dir)
         if part not in parts:
             raise KeyError(f"{split_dir}: no part {part!r}; it has {', '.join(parts)}")
@@ -85,9 +105,29 @@ class TactileDataset(Dataset):
         self.mm_per_px = [float(r["mm_per_px"]) for r in self.manifest["runs"]]
         self.mean = np.asarray(self.manifest["wrench_mean"])
         self.std = np.asarray(self.manifest["wrench_std"])
+        self.physics = None if physics is None else self._physics(Path(physics), part)
         self._files: dict[int, h5py.File] = {}
         self._objects: dict[int, np.ndarray] = {}
         self._pid: int | None = None
+
+    def _physics(self, path: Path, part: str) -> np.ndarray:
+        """The cache's images, memory-mapped, after checking they are this part's at this size."""
+        import hashlib
+        import json
+
+        expected = (len(self.rows), self.size, self.size, 3)
+        try:
+            key = json.loads(path.with_suffix(".json").read_text())
+            images = np.load(path, mmap_mode="r")
+        except (OSError, ValueError) as exc:
+            raise ValueError(f"{path}: not a physics render cache ({exc}); rebuild it with `train`") from None
+        rows_sha1 = hashlib.sha1(np.ascontiguousarray(self.rows).tobytes()).hexdigest()
+        if images.shape != expected or images.dtype != np.uint8 or key.get("rows_sha1") != rows_sha1:
+            raise ValueError(
+                f"{path}: physics renders {images.shape} {images.dtype} are not the {part} part's "
+                f"{expected} uint8 (a stale cache); rebuild it with `train`"
+            )
+        return images
 
     def __len__(self) -> int:
         return len(self.rows)
@@ -120,7 +160,10 @@ class TactileDataset(Dataset):
             )
             for fl in self.fields
         }
+        if self.physics is not None:
+            extra["physics"] = image_to_tensor(np.asarray(self.physics[i]))
         return extra | {
+            "run_path": self.runs[run],
             "condition": image_to_tensor(condition),
             "wrench": torch.from_numpy(normalise_wrench(wrench, self.mean, self.std).astype(np.float32)),
             "tactile": self._to_tensor(tactile),

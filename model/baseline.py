@@ -55,46 +55,80 @@ def run_profile(run_path: str, attrs: dict, profile=None):
         raise BaselineUnavailable(str(exc)) from None
 
 
-class PhysicsRender:
-    def __init__(self, run_path: str, *, noise_std: float = 0.0, profile=None):
-        """``profile``: a SensorProfile to render with (default: the run's, see the module docstring)."""
+class ObjectRender:
+    """The physics render of a library object on a square pad of ``frame_px`` pixels at
+    ``mm_per_px`` (None: the profile's own field of view), lit with ``profile``'s optics for
+    sensor ``kind``, over ``background`` (BGR, frame_px square; None: the simulator's own)."""
+
+    def __init__(
+        self,
+        obj: str,
+        kind: str,
+        profile,
+        frame_px: int,
+        mm_per_px: float | None,
+        *,
+        background: np.ndarray | None = None,
+        noise_std: float = 0.0,
+        where: str = "",
+    ):
         from objects.indenters import INDENTERS
         from sensor_sim.contact import SensorGeometry
         from sensor_sim.optics import Renderer
         from sensor_sim.world_contact import ElastomerContact
 
-        with h5py.File(run_path, "r", swmr=True) as f:
-            attrs = dict(f.attrs)
-            obj = str(attrs.get(S.ATTR_OBJECT, ""))
-            kind = str(attrs.get(S.ATTR_SENSOR_KIND, "rgb"))
-            h, w = f[S.FRAMES].shape[1:3]
-            reference = f[S.REFERENCE_FRAME][()]
         if obj not in INDENTERS:
             raise BaselineUnavailable(
-                f"{run_path}: object {obj!r} is not one the simulator knows ({', '.join(INDENTERS)}): no physics render"
+                f"{where or 'object'}: object {obj!r} is not one the simulator knows ({', '.join(INDENTERS)}): "
+                "no physics render"
             )
-        if h != w:
-            raise BaselineUnavailable(f"{run_path}: frames are {w}x{h}; the simulator renders a square pad")
-        self.profile = run_profile(run_path, attrs, profile)
-        mm_per_px = float(attrs.get(S.ATTR_MM_PER_PX, float("nan")))
+        self.profile = profile
         geometry = (
-            SensorGeometry(width_mm=w * mm_per_px, height_mm=h * mm_per_px, cells=RIG_CELLS)
-            if math.isfinite(mm_per_px) and mm_per_px > 0
-            else self.profile.geometry(cells=RIG_CELLS)
+            SensorGeometry(width_mm=frame_px * mm_per_px, height_mm=frame_px * mm_per_px, cells=RIG_CELLS)
+            if mm_per_px is not None and math.isfinite(mm_per_px) and mm_per_px > 0
+            else profile.geometry(cells=RIG_CELLS)
         )
-        self.contact = ElastomerContact(obj, self.profile.gel(), geometry)
-        spec = dataclasses.replace(self.profile.optics_spec(kind), height_px=h, width_px=w, noise_std=noise_std)
-        background = None if spec.has_markers else reference
-        self.renderer = Renderer(spec, geometry, background, profile=self.profile)
+        self.contact = ElastomerContact(obj, profile.gel(), geometry)
+        spec = dataclasses.replace(
+            profile.optics_spec(kind), height_px=frame_px, width_px=frame_px, noise_std=noise_std
+        )
+        self.renderer = Renderer(spec, geometry, None if spec.has_markers else background, profile=profile)
 
-    def render(self, pose_measured: np.ndarray) -> np.ndarray:
-        """BGR uint8 frame at the run's size for a pose (x, y, z mm from the contact point, θ deg)."""
+    def render(self, pose_measured) -> np.ndarray:
+        """BGR uint8 frame, frame_px square, for a pose (x, y, z mm from the contact point, θ deg)."""
         from objects.pose import Pose
 
         self.contact.reset()  # the pose alone: no friction history
         x, y, z, theta = (float(v) for v in pose_measured)
         result = self.contact.solve(Pose(x, y, z, theta), self.renderer.needs())
         return self.renderer.render(result.fields)
+
+
+class PhysicsRender(ObjectRender):
+    def __init__(self, run_path: str, *, noise_std: float = 0.0, profile=None, background: str = "run"):
+        """A run's object, sensor and scale (see the module docstring). ``profile``: a SensorProfile
+        to render with (default: the run's). ``background``: "run" (its no-contact reference frame,
+        for sensors without markers) or "simulator" (the simulator's own: what the physics
+        conditioning renders on, so that `generate` can render it without the run file)."""
+        with h5py.File(run_path, "r", swmr=True) as f:
+            attrs = dict(f.attrs)
+            obj = str(attrs.get(S.ATTR_OBJECT, ""))
+            kind = str(attrs.get(S.ATTR_SENSOR_KIND, "rgb"))
+            h, w = f[S.FRAMES].shape[1:3]
+            reference = f[S.REFERENCE_FRAME][()] if background == "run" else None
+        if h != w:
+            raise BaselineUnavailable(f"{run_path}: frames are {w}x{h}; the simulator renders a square pad")
+        mm_per_px = float(attrs.get(S.ATTR_MM_PER_PX, float("nan")))
+        super().__init__(
+            obj,
+            kind,
+            run_profile(run_path, attrs, profile),
+            w,
+            mm_per_px if math.isfinite(mm_per_px) and mm_per_px > 0 else None,
+            background=reference,
+            noise_std=noise_std,
+            where=run_path,
+        )
 
 
 def render_frames(

@@ -13,6 +13,7 @@ from typing import Callable
 
 import numpy as np
 
+from common.eta import Eta
 from model import checkpoint as C
 from model.checkpoint import CheckpointError
 from model.config import ModelConfig
@@ -20,21 +21,26 @@ from model.trainer import Callback, Trainer
 
 
 class Progress(Callback):
-    """``step N/UNTIL  loss L  R images/s`` every ``every`` steps and at the last: the mean loss
-    over the last ``every`` steps; the rate since this train() call began."""
+    """``step N/UNTIL  loss L  R images/s  ELAPSED, about LEFT left`` every ``every`` steps and at
+    the last: the mean loss over the last ``every`` steps; the rate and the time left from this
+    train() call's steps so far (``clock``: seconds, monotonic; injected in tests)."""
 
-    def __init__(self, log: Callable[[str], None], every: int = 50):
+    def __init__(self, log: Callable[[str], None], every: int = 50, clock: Callable[[], float] = time.perf_counter):
         self.log, self.every = log, every
-        self._t0, self._first = 0.0, 0
+        self.eta = Eta(0, clock)
 
     def on_train_start(self, trainer: Trainer) -> None:
-        self._t0, self._first = time.perf_counter(), trainer.step
+        self.eta = Eta(trainer.until, self.eta.clock, first=trainer.step)
 
     def on_step_end(self, trainer: Trainer) -> None:
         if trainer.is_main and (trainer.step % self.every == 0 or trainer.step == trainer.until):
-            rate = (trainer.step - self._first) * trainer.config.batch_size / (time.perf_counter() - self._t0)
+            elapsed = self.eta.elapsed()
+            images = (trainer.step - self.eta.first) * trainer.config.batch_size
+            rate = f"{images / elapsed:.1f}" if elapsed > 0 else "?"
             loss = np.mean(trainer.losses[-self.every :])
-            self.log(f"step {trainer.step}/{trainer.until}  loss {loss:.4f}  {rate:.1f} images/s")
+            self.log(
+                f"step {trainer.step}/{trainer.until}  loss {loss:.4f}  {rate} images/s  {self.eta.line(trainer.step)}"
+            )
 
 
 class ValidationSamples(Callback):

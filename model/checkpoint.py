@@ -117,6 +117,21 @@ def conditioning(meta: dict, path: Path) -> tuple[list[float], list[float], floa
     return mean, std, float(mm_per_px), frame_px
 
 
+def physics_record(meta: dict, path: Path) -> dict | None:
+    """A physics-conditioned model's render record (model/physics_condition.py's PhysicsSpec
+    fields), None for the other conditionings; a physics model without one is an error."""
+    cfg = model_config(meta, path)
+    if not cfg.uses_physics:
+        return None
+    raw = meta.get("physics")
+    if not isinstance(raw, dict):
+        raise CheckpointError(
+            f"{path}: [physics] missing: a {cfg.conditioning!r} model needs the record of its physics render "
+            "(sensor kind, profile, scale); retrain it"
+        )
+    return raw
+
+
 def write_training_state(ck: Path, state: dict, meta: dict) -> None:
     """A trainer's ``state()`` (weights, EMA, optimizer, noise generator, step, losses) and ``meta``
     (configs, conditioning statistics) as the files above; state.json last, so a folder with one

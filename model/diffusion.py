@@ -78,10 +78,11 @@ class Diffusion:
 
     def batch_loss(self, net, batch: dict, generator: torch.Generator | None = None) -> torch.Tensor:
         """``loss`` for a collated Dataset batch on the training device: images uint8 0–255."""
-        from dataset.torch_dataset import scale_images
+        from dataset.torch_dataset import condition_of, scale_images
 
+        # condition_of: the object image, then the physics render when the batch has one
         return self.loss(
-            net, scale_images(batch["tactile"]), scale_images(batch["condition"]), batch["wrench"], generator=generator
+            net, scale_images(batch["tactile"]), scale_images(condition_of(batch)), batch["wrench"], generator=generator
         )
 
     # -- sampling ------------------------------------------------------------------------
@@ -132,6 +133,6 @@ class Diffusion:
         if sampler not in SAMPLERS:
             raise ValueError(f"sampler must be one of {', '.join(SAMPLERS)}, got {sampler!r}")
         timesteps = spaced_timesteps(self.cfg.train_timesteps, steps, SPACING[sampler])
-        x = torch.randn(condition.shape, device=condition.device, generator=generator)
+        x = torch.randn((condition.shape[0], 3, *condition.shape[2:]), device=condition.device, generator=generator)
         denoise = self.denoiser(net, condition, wrench, guidance=guidance)
         return SAMPLERS[sampler](denoise, x, timesteps, self.alpha_bar, generator=generator).clamp(-1.0, 1.0)

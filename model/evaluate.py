@@ -3,65 +3,35 @@
 For each (sampler, steps) setting: MSE, MAE, SSIM, PSNR (model/metrics.py), the
 marker displacement error for marker sensors, and the seconds per generated image;
 beside them the simulator's physics render of the same frames (model/baseline.py)
-as the lighting-model baseline row. ``report`` writes the table (Markdown + JSON),
-the error-against-run-time plot, example frames and, for marker sensors, marker
-motion images (model/figures.py).
+as the lighting-model baseline row; optionally the force-response check
+(model/force_sweep.py). ``evaluate_parts`` evaluates every test part a split has —
+``test`` (unseen frames of the training objects) and ``test_object`` (objects held out
+of training, ``dataset split --hold-out``) — and ``report`` writes one report with a
+section per part: the table (Markdown + JSON), the error-against-run-time plot, example
+frames, the force sweep and, for marker sensors, marker motion images (model/figures.py).
 """
 
 from __future__ import annotations
 
-import json
 import time
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
+import cv2
 import h5py
 import numpy as np
 
 from acquisition import schema as S
 from acquisition.schema import RIG_CONFIG_MARK
+from common.eta import Eta
 from dataset.torch_dataset import TactileDataset, spread, uint8_tensor_to_image
+from model.eval_results import PAPER_ROWS, PHYSICS, Evaluation, Row
 from model.inference import TrainedModel
 from model.markers import marker_error
 from model.metrics import image_metrics
 
-PAPER_ROWS = [  # docs/reference.md, "The model, as the paper states it": real data, 0–255 scale
-    ("TACTO (RGB light)", 201.87, 10.31, 0.80, 25.43),
-    ("Taxim (RGB light)", 56.715, 5.14, 0.88, 31.12),
-    ("FOTS (RGB light)", 53.267, 4.91, 0.89, 32.30),
-    ("paper, RGB light", 21.00, 3.39, 0.97, 36.62),
-    ("paper, RGB light + markers", 28.02, 3.24, 0.95, 34.28),
-    ("paper, white light + markers", 67.09, 5.27, 0.81, 30.91),
-]
-PHYSICS = "physics render"
-
-
-@dataclass
-class Row:
-    setting: str
-    mse: float
-    mae: float
-    ssim: float
-    psnr: float
-    marker_px: float | None  # mean per marker over frames whose markers were found
-    seconds_per_image: float
-    images: int
-    marker_failures: int = 0  # frames where 18×18 markers could not be found/matched
-    network_evaluations: int = 0  # forward passes of the network per image (sampler steps); 0: not the model
-
-
-@dataclass
-class Evaluation:
-    rows: list[Row]  # this model, one per sampler setting
-    baseline: Row | None  # the physics render
-    baseline_note: str  # why there is no baseline row, when there is none
-    markers: bool
-    simulated: bool = False  # every frame came from the simulated rig
-    examples: dict[str, list[np.ndarray]] = field(default_factory=dict)  # column → BGR images of the example frames
-    example_labels: list[str] = field(default_factory=list)  # each example row's wrench and pose
-    context: dict[str, str] = field(default_factory=dict)  # what was evaluated, how, and on which machine
-    references: list[np.ndarray] = field(default_factory=list)  # each example's no-contact frame
+__all__ = ["PAPER_ROWS", "PHYSICS", "Evaluation", "Row", "evaluate", "evaluate_parts", "report"]
 
 
 def _score(setting: str, real: list[np.ndarray], made: list[np.ndarray], seconds: float, markers: bool) -> Row:
@@ -79,8 +49,58 @@ def _score(setting: str, real: list[np.ndarray], made: list[np.ndarray], seconds
     return Row(setting, mean["mse"], mean["mae"], mean["ssim"], mean["psnr"], marker, seconds, len(real), failures)
 
 
+@dataclass
+class SweepOptions:
+    """The force-response check: ``poses`` test poses, ``points`` values per component, generated
+    with ``sampler`` for ``steps`` steps (the same initial noise at every point)."""
+
+    poses: int = 3
+    points: int = 7
+    sampler: str = "ddim"
+    steps: int = 10
+    components: tuple[str, ...] = ("Fz", "Fx", "Fy", "Mz")
+
+
 def evaluate(
     run_dir: str | Path,
+    split_dir: str | Path,
+    *,
+    part: str = "test",
+    device: str = "cpu",
+    **kwargs,
+) -> Evaluation:
+    """One part of a split (``evaluate_part``'s options)."""
+    return evaluate_part(TrainedModel.load(run_dir, device=device), split_dir, part=part, **kwargs)
+
+
+def test_parts(split_dir: str | Path) -> list[str]:
+    """The parts ``evaluate_parts`` reports on by default: test and test_object, those the split has."""
+    from dataset.split import TEST_PARTS, load_split
+
+    manifest, _ = load_split(split_dir)
+    return [p for p in TEST_PARTS if p in manifest["parts"]] or [list(manifest["parts"])[-1]]
+
+
+def evaluate_parts(
+    run_dir: str | Path,
+    split_dir: str | Path,
+    *,
+    parts: list[str] | None = None,
+    device: str = "cpu",
+    log: Callable[[str], None] = lambda line: None,
+    **kwargs,
+) -> list[Evaluation]:
+    """Every test part of the split (``parts``; default ``test_parts``), the model loaded once."""
+    model = TrainedModel.load(run_dir, device=device)
+    out = []
+    for part in parts or test_parts(split_dir):
+        log(f"part {part}:")
+        out.append(evaluate_part(model, split_dir, part=part, log=log, **kwargs))
+    return out
+
+
+def evaluate_part(
+    model: TrainedModel,
     split_dir: str | Path,
     *,
     part: str = "test",
@@ -89,16 +109,17 @@ def evaluate(
     seed: int = 0,
     markers: bool | None = None,
     baseline: bool = True,
-    device: str = "cpu",
     batch_size: int = 64,
     n_examples: int = 6,
     log: Callable[[str], None] = lambda line: None,
     profile: str | Path | None = None,
+    sweep: SweepOptions | None = None,
+    clock: Callable[[], float] = time.perf_counter,
 ) -> Evaluation:
     """``limit`` frames spread evenly over the part (all by default); ``markers`` None: on
     when the split's sensor has markers. ``profile``: the sensor profile TOML of the physics
-    render (default: each run's recorded profile, else the shipped one; model/baseline.py)."""
-    model = TrainedModel.load(run_dir, device=device)
+    render (default: each run's recorded profile, else the shipped one; model/baseline.py).
+    ``sweep``: run the force-response check too (model/force_sweep.py)."""
     data = TactileDataset(split_dir, part, size=model.cfg.image_size)
     if len(data) == 0:
         raise ValueError(f"{split_dir}: the {part} part is empty")
@@ -107,7 +128,8 @@ def evaluate(
         markers = any(str(r.get("sensor", "")).endswith("_markers") for r in data.manifest["runs"])
     real = [uint8_tensor_to_image(it["tactile"]) for it in items]
     ex = spread(len(items), n_examples)
-    ev = Evaluation([], None, "", markers)
+    ev = Evaluation([], None, "", markers, part=part)
+    ev.objects = sorted({str(data.manifest["runs"][int(r)].get("object", "?")) for r in np.unique(data.rows[:, 0])})
     ev.examples["object at pose"] = [uint8_tensor_to_image(items[i]["condition"]) for i in ex]
     ev.examples["real"] = [real[i] for i in ex]
     ev.references = _references(data, [items[i]["run"] for i in ex], model.cfg.image_size)
@@ -135,20 +157,119 @@ def evaluate(
 
     if settings:  # warm-up: the first timed setting should not pay for first-call costs
         list(model.generate_items(items[:1], steps=2, sampler=settings[0][0], seed=seed))
+    work = Eta(sum(steps for _, steps in settings) * len(items), clock)  # in network evaluations per image
+    done = 0
     for sampler, steps in settings:
         made: list[np.ndarray] = []
-        t0 = time.perf_counter()
+        t0 = clock()
         for img in model.generate_items(items, steps=steps, sampler=sampler, seed=seed, batch_size=batch_size):
             made.append(img)
             if len(made) % batch_size == 0 or len(made) == len(items):
-                log(f"{sampler} {steps} steps: {len(made)}/{len(items)} frames")
-        seconds = (time.perf_counter() - t0) / len(items)
+                line = work.line(done + steps * len(made))
+                log(f"{part}: {sampler} {steps} steps: {len(made)}/{len(items)} frames, {line}")
+        done += steps * len(items)
+        seconds = (clock() - t0) / len(items)
         setting = f"{sampler}, {steps} steps"
         row = _score(setting, real, made, seconds, markers)
         row.network_evaluations = steps  # guidance runs both halves in one batched pass
         ev.rows.append(row)
         ev.examples[setting] = [made[i] for i in ex]
+    if sweep is not None:
+        _force_sweep(ev, model, split_dir, data, items, sweep, seed, markers, profile, log, clock)
+    else:
+        ev.sweep_note = "not asked for (--no-force-sweep)"
     return ev
+
+
+def _force_sweep(ev, model, split_dir, data, items, opts: SweepOptions, seed, markers, profile, log, clock) -> None:
+    """The force-response check at ``opts.poses`` poses of the part (model/force_sweep.py)."""
+    import torch
+
+    from dataset.condition import normalise_wrench
+    from dataset.split import PERCENTILES
+    from model import force_sweep as F
+
+    pct = data.manifest.get("wrench_percentiles") or _train_percentiles(split_dir, data, PERCENTILES)
+    ranges = {name: F.training_range(pct, name) for name in opts.components}
+    runs: dict[int, F.RunData] = {}
+
+    def run(r: int) -> F.RunData:
+        if r not in runs:
+            runs[r] = F.RunData.load(data.runs[r], model.cfg.image_size)
+        return runs[r]
+
+    rows = np.array([[it["run"], it["frame"]] for it in items])
+    poses = F.choose_poses(rows, lambda r: run(r).wrench, lambda r: run(r).pose, opts.poses, data.std)
+    if not poses:
+        ev.sweep_note = "no frame of this part is in firm contact: no force sweep"
+        return
+    by_row = {(int(it["run"]), int(it["frame"])): it for it in items}
+
+    def generate(p: int, wrenches: np.ndarray) -> list[np.ndarray]:
+        base = by_row[poses[p]]
+        out = []
+        for w in wrenches:  # one at a time from the same seed: every point starts from the same noise
+            it = dict(base)
+            norm = normalise_wrench(w, model.wrench_mean, model.wrench_std).astype(np.float32)
+            it["wrench"] = torch.from_numpy(norm)
+            out += list(model.generate_items([it], steps=opts.steps, sampler=opts.sampler, seed=seed))
+        return out
+
+    renderers: dict = {}
+    unavailable: list[str] = []
+
+    def physics(r: int, pose: np.ndarray) -> np.ndarray | None:
+        from model.baseline import BaselineUnavailable, PhysicsRender
+        from sensor_sim.profile import load_profile
+
+        if r not in renderers:
+            try:
+                renderers[r] = PhysicsRender(data.runs[r], profile=load_profile(profile) if profile else None)
+            except BaselineUnavailable as exc:  # an object the simulator does not know: no render reference
+                renderers[r] = None
+                unavailable.append(str(exc))
+                log(f"{ev.part}: force sweep without the physics render: {exc}")
+        if renderers[r] is None:
+            return None
+        img = renderers[r].render(pose)
+        size = model.cfg.image_size
+        return img if img.shape[0] == size else cv2.resize(img, (size, size), interpolation=cv2.INTER_AREA)
+
+    blur = max(0.5, model.cfg.image_size / 64) * (2.5 if markers else 1.0)
+    ev.sweeps = F.run_force_sweep(
+        generate,
+        {r: run(r) for r, _ in poses},
+        poses,
+        ranges,
+        model.wrench_std,
+        points=opts.points,
+        physics=physics,
+        blur_px=blur,
+        log=lambda line: log(f"{ev.part}: {line}"),
+        clock=clock,
+    )
+    ev.sweep_summary = [F.summarise(s) for s in ev.sweeps]
+    ev.sweep_ranges = ranges
+    ev.sweep_note = (
+        f"generated with {opts.sampler}, {opts.steps} steps, seed {seed} (the same initial noise at every point); "
+        f"{opts.points} values per component; contact: change from the run's no-contact frame above "
+        f"{F.THRESHOLD:g} (0–255) after a Gaussian blur of σ {blur:g} px"
+        + "".join(f"; no physics render: {why}" for why in dict.fromkeys(unavailable))
+    )
+
+
+def _train_percentiles(split_dir, data: TactileDataset, qs) -> dict:
+    """The training part's wrench percentiles, for a split written before split.json kept them."""
+    from dataset.split import load_split
+
+    _, parts = load_split(split_dir)
+    train = parts["train"]
+    wrench = []
+    for r in np.unique(train[:, 0]):
+        with h5py.File(data.runs[int(r)], "r", swmr=True) as f:
+            wrench.append(f[S.WRENCH][()][train[train[:, 0] == r][:, 1]])
+    values = np.percentile(np.concatenate(wrench), qs, axis=0)
+    return {f"p{q}": row.tolist() for q, row in zip(qs, values)}
 
 
 def _label(data: TactileDataset, item: dict) -> str:
@@ -180,8 +301,14 @@ def _context(model: TrainedModel, data: TactileDataset, part: str, frames: int) 
         "model": f"{cfg.network}, widths {list(cfg.block_out_channels)}, {cfg.layers_per_block} resnet block(s) "
         f"per level, predicts {cfg.prediction}",
         "conditioning": cfg.conditioning,
-        "split": f"by {m.get('by', '?')}, ratios {m.get('ratios', '?')}, seed {m.get('seed', '?')}; evaluated part "
-        f"{part!r}, {frames} frames; objects in the split: {', '.join(objects)}",
+        "split": f"by {m.get('by', '?')}, ratios {m.get('ratios', '?')}, seed {m.get('seed', '?')}; objects in the "
+        f"split: {', '.join(objects)}; "
+        + (
+            f"held out of training (part test_object): {', '.join(m['held_out_objects'])}"
+            if m.get("held_out_objects")
+            else "no object held out of training"
+        )
+        + f"; trained on: {', '.join(m.get('objects', {}).get('train', [])) or '?'}",
         "machine": f"{describe()}, device {device}, torch "
         f"{torch.__version__} with {torch.get_num_threads()} thread(s); load average at the start "
         f"{os.getloadavg()[0]:.1f} (timings are warm, after one untimed batch, and share the machine "
@@ -205,82 +332,8 @@ def _references(data: TactileDataset, runs: list[int], size: int) -> list[np.nda
     return [cache[r] for r in runs]
 
 
-def _fmt_row(name: str, r: Row) -> str:
-    if r.marker_px is None:
-        mk = "—" if not r.marker_failures else f"— ({r.marker_failures} frames without markers)"
-    else:
-        mk = f"{r.marker_px:.2f}" + (f" ({r.marker_failures} frames failed)" if r.marker_failures else "")
-    per_nfe = f"{r.seconds_per_image / r.network_evaluations:.5f}" if r.network_evaluations else "—"
-    return (
-        f"| {name} | {r.mse:.2f} | {r.mae:.2f} | {r.ssim:.3f} | {r.psnr:.2f} | {mk} | {r.seconds_per_image:.4f} "
-        f"| {per_nfe} |"
-    )
+def report(ev: Evaluation | list[Evaluation], out: str | Path, *, title: str) -> Path:
+    """One report for one or several evaluated parts (model/evaluation_report.py)."""
+    from model.evaluation_report import write_report
 
-
-def report(ev: Evaluation, out: str | Path, *, title: str) -> Path:
-    """report.md + metrics.json + error_vs_time.png + samples.png (+ marker_flow.png) in ``out``."""
-    from model.figures import error_vs_time_plot, marker_flow_figure, samples_figure
-
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    n = ev.rows[0].images if ev.rows else 0
-    lines = [f"# {title}", ""]
-    lines += [f"- **{key}**: {value}" for key, value in ev.context.items()]
-    lines += [
-        "",
-        f"{n} held-out frames. Metrics as docs/reference.md#metrics defines them (0–255 scale, all channels, "
-        "whole image); marker error: mean distance per matched marker of the central 18×18, in px at the "
-        "evaluated size.",
-        "",
-        "| method | MSE | MAE | SSIM | PSNR | marker px/marker | s / image | s / network evaluation |",
-        "|---|---|---|---|---|---|---|---|",
-    ]
-    for r in ev.rows:
-        lines.append(_fmt_row(f"this model ({r.setting})", r))
-    if ev.baseline is not None:
-        lines.append(_fmt_row("physics render: the simulator's mechanics + lighting at the measured pose", ev.baseline))
-    for name, mse_, mae_, ssim_, psnr_ in PAPER_ROWS:
-        lines.append(f"| {name} (paper's table, real data, 256 px) | {mse_} | {mae_} | {ssim_} | {psnr_} | — | — | — |")
-    if ev.baseline is None:
-        lines += ["", f"No physics-render row: {ev.baseline_note}"]
-    elif ev.simulated:
-        lines += [
-            "",
-            "These frames come from the simulated rig, so the physics render is the model that made them: "
-            "it differs from them only by sensor noise and the friction history of earlier frames. Here it "
-            "is an oracle, not a baseline; on frames from a real sensor it is the lighting-model baseline.",
-        ]
-    lines += [
-        "",
-        "## Error against run time",
-        "",
-        "![error against seconds per image](error_vs_time.png)",
-        "",
-        "## Examples",
-        "",
-        "Columns: " + ", ".join(ev.examples) + ".",
-        "",
-        "![examples](samples.png)",
-    ]
-    error_vs_time_plot(ev, out / "error_vs_time.png")
-    samples_figure(ev.examples, out / "samples.png", ev.example_labels)
-    if ev.markers:
-        made = marker_flow_figure(ev, out / "marker_flow.png")
-        if made:
-            lines += [
-                "",
-                "## Marker motion",
-                "",
-                "Arrows from each central marker at rest (the run's no-contact frame) to where it is found, "
-                "drawn ×4: real, physics render, this model.",
-                "",
-                "![marker motion](marker_flow.png)",
-            ]
-    (out / "report.md").write_text("\n".join(lines) + "\n")
-    payload = {
-        "model": [asdict(r) for r in ev.rows],
-        "physics_render": asdict(ev.baseline) if ev.baseline else None,
-        "physics_render_note": ev.baseline_note,
-    }
-    (out / "metrics.json").write_text(json.dumps(payload, indent=2) + "\n")
-    return out / "report.md"
+    return write_report(ev if isinstance(ev, list) else [ev], out, title=title)

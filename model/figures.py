@@ -135,3 +135,76 @@ def marker_flow_figure(ev, path: Path) -> bool:
     header = np.concatenate([_header(name, rows[0].shape[1] // len(sources)) for name, _ in sources], axis=1)
     cv2.imwrite(str(path), np.concatenate([header, *rows], axis=0))
     return True
+
+
+def _strip(images: list, size: int) -> np.ndarray:
+    """Frames side by side with a 2 px white gap; a missing one (None) is a light-grey square."""
+    tiles = [im if im is not None else np.full((size, size, 3), 225, np.uint8) for im in images]
+    gap = np.full((size, 2, 3), 255, np.uint8)
+    return np.concatenate([x for t in tiles for x in (t, gap)][:-1], axis=1)
+
+
+def force_sweep_figure(sweeps: list, path: Path) -> None:
+    """One component's sweep (force_sweep.PoseSweep per pose): for each pose the generated frames across
+    the sweep over the reference frames (grey: none), then area, centroid and shading against the force,
+    the model as solid lines, the reference as dashed (o: a real frame, x: the physics render)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    name = sweeps[0].component
+    size = sweeps[0].images[0].shape[0]
+    fig = plt.figure(figsize=(13, 2.0 * len(sweeps) + 3.2))
+    grid = fig.add_gridspec(len(sweeps) + 1, 4, height_ratios=[1.6] * len(sweeps) + [2.2])
+    for i, s in enumerate(sweeps):
+        ax = fig.add_subplot(grid[i, :])
+        strip = np.concatenate(
+            [
+                _strip(s.images, size),
+                np.full((2, 1, 3), 255, np.uint8).repeat(_strip(s.images, size).shape[1], 1),
+                _strip(s.reference_images, size),
+            ],
+            axis=0,
+        )
+        ax.imshow(strip[..., ::-1], interpolation="nearest")
+        ax.set_xticks([(size + 2) * j + size / 2 for j in range(len(s.values))])
+        ax.set_xticklabels([f"{v:.2f}" for v in s.values], fontsize=7)
+        ax.set_yticks([size / 2, size * 1.5 + 2])
+        ax.set_yticklabels(["model", "reference"], fontsize=7)
+        ax.set_title(f"pose {i + 1}: {s.label}", fontsize=7, loc="left")
+    panels = [
+        ("area_mm2", "contact area, mm²"),
+        ("centroid_x_mm", "centroid x, mm"),
+        ("centroid_y_mm", "centroid y, mm"),
+        ("shading", "shading, mean |change|"),
+    ]
+    colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    for j, (key, label) in enumerate(panels):
+        ax = fig.add_subplot(grid[len(sweeps), j])
+        for i, s in enumerate(sweeps):
+            c = colours[i % len(colours)]
+            ax.plot(s.values, [getattr(m, key) for m in s.model], "-", color=c, label=f"model, pose {i + 1}")
+            for marker, kind in (("o", "real"), ("x", "physics")):
+                pts = [
+                    (v, getattr(m, key))
+                    for v, m, src in zip(s.values, s.reference, s.sources)
+                    if m is not None and src.startswith(kind)
+                ]
+                if pts:
+                    ax.plot(
+                        *zip(*pts),
+                        "--" + marker,
+                        color=c,
+                        markersize=4,
+                        label=f"reference ({'real frame' if kind == 'real' else 'physics render'}), pose {i + 1}",
+                    )
+        ax.set_xlabel(f"{name} (the swept value)", fontsize=8)
+        ax.set_ylabel(label, fontsize=8)
+        ax.tick_params(labelsize=7)
+        ax.grid(alpha=0.3)
+        if j == 0:
+            ax.legend(fontsize=6)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)

@@ -12,11 +12,28 @@ from torch import nn
 
 from acquisition import schema as S
 from dataset.condition import condition_image, normalise_wrench
-from dataset.torch_dataset import image_to_tensor, scale_images, tensor_to_image
+from dataset.torch_dataset import condition_of, image_to_tensor, scale_images, tensor_to_image
 from model import checkpoint as C
 from model.config import ModelConfig
 from model.diffusion import Diffusion
+from model.physics_condition import PhysicsSpec, resize
 from model.registry import build_network
+
+
+def add_physics(items: list[dict], size: int) -> None:
+    """Give each item without one its ``physics`` field: the physics render of its run frame at its
+    measured pose (what the training cache holds, model/physics_condition.py), rendered now from
+    its ``run_path``. The item keeps it, so a second sampler setting does not render it again."""
+    from model.baseline import PhysicsRender
+
+    renderers: dict[str, PhysicsRender] = {}
+    for it in items:
+        if "physics" in it:
+            continue
+        path = it["run_path"]
+        if path not in renderers:
+            renderers[path] = PhysicsRender(path, background="simulator")
+        it["physics"] = image_to_tensor(resize(renderers[path].render(it["pose"].numpy()), size))
 
 
 def generate_items(
@@ -32,11 +49,15 @@ def generate_items(
     batch_size: int = 64,
 ):
     """Generated frames (BGR uint8), in order, for Dataset items (their condition and wrench),
-    ``batch_size`` at a time from one noise stream seeded with ``seed``."""
+    ``batch_size`` at a time from one noise stream seeded with ``seed``. A physics-conditioned
+    network gets each item's physics render: the item's own, else rendered (``add_physics``)."""
+    cfg = getattr(net, "cfg", None)
     g = torch.Generator(device=device).manual_seed(seed)
     for lo in range(0, len(items), batch_size):
         chunk = items[lo : lo + batch_size]
-        cond = scale_images(torch.stack([it["condition"] for it in chunk]).to(device))
+        if cfg is not None and cfg.uses_physics:
+            add_physics(chunk, cfg.image_size)
+        cond = scale_images(torch.stack([condition_of(it) for it in chunk]).to(device))
         wrench = torch.stack([it["wrench"] for it in chunk]).to(device)
         out = diffusion.sample(net, cond, wrench, steps=steps, sampler=sampler, guidance=guidance, generator=g)
         yield from (tensor_to_image(x) for x in out)
@@ -52,6 +73,8 @@ class TrainedModel:
     mm_per_px: float  # the training frames' scale...
     frame_px: int  # ...at this many pixels across: an object image spans frame_px × mm_per_px mm
     device: torch.device
+    physics: PhysicsSpec | None = None  # what renders the physics channels (physics conditioning only)
+    _renderers: dict | None = None  # object name → its ObjectRender, made on first use
 
     @classmethod
     def load(cls, run_dir: str | Path, device: str = "cpu") -> "TrainedModel":
@@ -59,10 +82,22 @@ class TrainedModel:
         meta = C.read_state(ck, hint=f" (train one with `train --out {run_dir}`)")
         cfg = C.model_config(meta, ck / C.STATE)
         mean, std, mm_per_px, frame_px = C.conditioning(meta, ck / C.STATE)
+        raw = C.physics_record(meta, ck / C.STATE)
+        physics = None if raw is None else PhysicsSpec.from_meta(raw, str(ck / C.STATE))
         net = build_network(cfg)
         C.load_weights(net, ck, C.EMA)
         dev = torch.device(device)
-        return cls(net.to(dev).eval(), Diffusion(cfg), cfg, np.asarray(mean), np.asarray(std), mm_per_px, frame_px, dev)
+        return cls(
+            net.to(dev).eval(),
+            Diffusion(cfg),
+            cfg,
+            np.asarray(mean),
+            np.asarray(std),
+            mm_per_px,
+            frame_px,
+            dev,
+            physics,
+        )
 
     def generate(
         self,
@@ -74,12 +109,23 @@ class TrainedModel:
         sampler: str = "ddim",
         seed: int = 0,
         guidance: float = 1.0,
+        object_name: str | None = None,
     ) -> np.ndarray:
-        """One tactile frame (BGR uint8, S×S) for an object image, a wrench (N, N·mm) and a pose (x, y mm, θ deg)."""
+        """One tactile frame (BGR uint8, S×S) for an object image, a wrench (N, N·mm) and a pose:
+        (x, y mm, θ deg) or (x, y, z mm, θ deg). A physics-conditioned model needs the pose with z
+        (mm from the contact point, negative into the gel) and ``object_name``, a library object."""
         wrench = np.asarray(wrench, dtype=np.float64)
         if wrench.shape != (6,) or not np.all(np.isfinite(wrench)):
             raise ValueError(f"wrench must be six finite numbers Fx,Fy,Fz (N),Mx,My,Mz (N·mm), got {wrench.tolist()}")
-        cond = scale_images(image_to_tensor(self.condition(object_bgr, pose))[None])
+        cond = image_to_tensor(self.condition(object_bgr, pose))
+        if self.cfg.uses_physics:
+            if object_name is None:
+                raise ValueError(
+                    f"this model is conditioned on the physics render ({self.cfg.conditioning}): give a library "
+                    "object or a run file of one as the object, not an image"
+                )
+            cond = torch.cat([cond, image_to_tensor(self.physics_image(object_name, pose))])
+        cond = scale_images(cond[None])
         w = torch.from_numpy(normalise_wrench(wrench, self.wrench_mean, self.wrench_std).astype(np.float32))[None]
         g = torch.Generator(device=self.device).manual_seed(seed)
         out = self.diffusion.sample(
@@ -95,10 +141,21 @@ class TrainedModel:
 
     def condition(self, object_bgr: np.ndarray, pose=(0.0, 0.0, 0.0)) -> np.ndarray:
         """The condition image (BGR uint8, S×S) for an object image of the sensor's field of view at a
-        pose (x, y mm, θ deg): what training built from the run's object image at the frame's pose."""
-        return condition_image(
-            object_bgr, pose[0], pose[1], pose[2], self.mm_per_px, self.frame_px, self.cfg.image_size
-        )
+        pose (x, y mm, θ deg, or x, y, z, θ): what training built from the run's object image at the
+        frame's pose."""
+        x, y, _, theta = _pose4(pose, need_z=False)
+        return condition_image(object_bgr, x, y, theta, self.mm_per_px, self.frame_px, self.cfg.image_size)
+
+    def physics_image(self, object_name: str, pose) -> np.ndarray:
+        """The physics channels' image (BGR uint8, S×S) for a library object at a pose (x, y, z mm,
+        θ deg): what training's cache holds for a run frame of that object at that measured pose."""
+        if self.physics is None:
+            raise ValueError(f"this model ({self.cfg.conditioning}) has no physics conditioning")
+        if self._renderers is None:
+            self._renderers = {}
+        if object_name not in self._renderers:
+            self._renderers[object_name] = self.physics.renderer(object_name, where="--object")
+        return resize(self._renderers[object_name].render(_pose4(pose, need_z=True)), self.cfg.image_size)
 
     def generate_items(self, items: list[dict], **kwargs):
         """``generate_items`` with this model's EMA weights."""
@@ -155,3 +212,19 @@ class TrainedModel:
                 if k % batch_size == 0 or k == len(items):
                     log(f"{k}/{len(items)} frames")
         return len(items)
+
+
+def _pose4(pose, *, need_z: bool) -> tuple[float, float, float, float]:
+    """(x, y, z, θ) from (x, y, θ) or (x, y, z, θ), checked finite; ValueError naming what is missing."""
+    values = [float(v) for v in pose]
+    if len(values) not in (3, 4) or not all(np.isfinite(values)):
+        raise ValueError(f"pose must be x,y (mm),theta (deg) or x,y,z (mm),theta (deg), finite; got {values}")
+    if len(values) == 3:
+        if need_z:
+            raise ValueError(
+                f"pose {values}: a physics-conditioned model needs the depth too: x,y,z,theta "
+                "(z in mm from the contact point, negative into the gel)"
+            )
+        values.insert(2, 0.0)
+    x, y, z, theta = values
+    return x, y, z, theta

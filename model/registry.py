@@ -3,8 +3,9 @@
 Swapping the U-Net touches three files:
 
 1. ``model/<name>.py``: an ``nn.Module`` built from a ``ModelConfig`` whose
-   ``forward(noisy (B, 3, S, S), timesteps (B,), condition (B, 3, S, S), wrench (B, 6))``
-   returns the ``ModelConfig.prediction`` target, (B, 3, S, S). ``model.network``'s
+   ``forward(noisy (B, 3, S, S), timesteps (B,), condition (B, C, S, S), wrench (B, 6))``
+   returns the ``ModelConfig.prediction`` target, (B, 3, S, S); C is
+   ``ModelConfig.condition_channels`` (3: the object image; 6: then the physics render). ``model.network``'s
    ``check_inputs`` and ``wrench_plane`` are there to share.
 2. This file: one NETWORKS row, ``"name": TheModule``.
 3. ``model/config.py``: the hyper-parameters it needs, each with its reason (only if

@@ -6,6 +6,10 @@ dict items and callbacks; ``model/build.py`` builds them all from the configs. P
 lines, validation images and checkpoints are callbacks (model/callbacks.py) on the
 events ``on_train_start``, ``on_step_end``, ``on_train_end``, ``on_save`` and ``on_resume``.
 
+Items are read from the Dataset once and kept (up to ``ITEM_CACHE_BYTES``): after the first
+epoch a step reads no file and resizes no image. So a Dataset's item must be a function of its
+index alone (TactileDataset's is: no random augmentation).
+
 Exact resume: the data order is a function of (seed, step) alone, and ``state()`` holds
 the weights, their EMA, the optimizer and the noise generator, so a run resumed from it
 takes the same steps with the same losses as an uninterrupted one.
@@ -25,6 +29,8 @@ from typing import Sequence
 
 import numpy as np
 import torch
+
+ITEM_CACHE_BYTES = 1 << 30  # items kept in memory up to this many bytes of tensors; the rest are re-read
 
 
 @dataclass(frozen=True)
@@ -77,6 +83,8 @@ class Trainer:
         self.ema = copy.deepcopy(net).eval().requires_grad_(False)
         self.net, self.opt = self.acc.prepare(net, torch.optim.Adam(net.parameters(), lr=config.lr))
         self.diffusion, self.data, self.callbacks = diffusion, data, list(callbacks)
+        self._items: dict[int, dict] = {}
+        self._item_bytes = 0
         self.step = 0
         self.until = config.steps  # the step this train() call stops at
         self.losses: list[float] = []
@@ -97,12 +105,23 @@ class Trainer:
     def _batch(self, step: int) -> dict:
         """This process's share of the step's batch: the items' tensors stacked, on the device."""
         mine = self.batch_indices(step)[self.acc.process_index :: self.acc.num_processes]
-        items = [self.data[int(i)] for i in mine]
+        items = [self._item(int(i)) for i in mine]
         return {
             k: torch.stack([it[k] for it in items]).to(self.device, non_blocking=True)
             for k, v in items[0].items()
             if isinstance(v, torch.Tensor)
         }
+
+    def _item(self, index: int) -> dict:
+        """The Dataset's item, read once and kept while the cache holds under ITEM_CACHE_BYTES."""
+        item = self._items.get(index)
+        if item is None:
+            item = self.data[index]
+            size = sum(v.numel() * v.element_size() for v in item.values() if isinstance(v, torch.Tensor))
+            if self._item_bytes + size <= ITEM_CACHE_BYTES:
+                self._items[index] = item
+                self._item_bytes += size
+        return item
 
     # -- the loop ------------------------------------------------------------------------
     def train(self, until: int | None = None) -> list[float]:

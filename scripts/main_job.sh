@@ -1,13 +1,22 @@
 #!/usr/bin/env bash
 # The whole job on the built-in simulated rig, from nothing to a trained model and a report:
 #   collect two objects → validate → split 8:2 → train (tiny preset, CPU) → evaluate.
-# Every step is a command you can run yourself on your own rig (drop --sim, pass --config).
+# Every step is a command you can run yourself on your own rig (drop --sim, pass --config);
+# each is printed before it runs ($ ...), and each stage prints the time so far and an estimate
+# of the time left.
 #
 #   bash scripts/main_job.sh [OUT_DIR]        (default: jobs/main-YYYYmmdd-HHMMSS)
 #
-# Knobs (environment): OBJECTS="sphere10mm circle8mm", SPEED_MM_S=0.1 (the paper's ~700
-# frames per object; the library default 0.01 mm/s gives ~5,800), STEPS=1500 training steps,
-# EVAL_FRAMES=300 test frames evaluated, SETTINGS=ddim:10,ddim:25,dpm:10.
+# Knobs (environment), defaults chosen by bench/first_result_bench.py (docs/benchmarks.md,
+# "The main job"): OBJECTS="sphere10mm circle8mm", SPEED_MM_S=0.1 (the paper's ~700 frames per
+# object; the library default 0.01 mm/s gives ~5,800), COLLECT_PARALLEL=1 (collect the objects
+# at the same time: each is one process; 0: one after another), STEPS=600 training steps,
+# BATCH=16, LR=0.002, EVAL_FRAMES=150 test frames evaluated, SETTINGS=ddim:10,dpm:10,
+# CONDITIONING=plane+embedding (the paper's wrench plane with an embedding, which these settings
+# were measured with; `train`'s own default for rgb is physics, whose render cache adds about
+# 40 ms per training frame: docs/model.md, "Conditioning").
+# Before issue 17 the job trained 1,500 steps at LR=0.001 and evaluated 300 frames at
+# ddim:10,ddim:25,dpm:10 (STEPS=1500 LR=0.001 EVAL_FRAMES=300 SETTINGS=ddim:10,ddim:25,dpm:10).
 set -euo pipefail
 
 here="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -15,9 +24,13 @@ bin="$here/.venv/bin"
 out="${1:-jobs/main-$(date +%Y%m%d-%H%M%S)}"
 objects=(${OBJECTS:-sphere10mm circle8mm})
 speed="${SPEED_MM_S:-0.1}"
-steps="${STEPS:-1500}"
-eval_frames="${EVAL_FRAMES:-300}"
-settings="${SETTINGS:-ddim:10,ddim:25,dpm:10}"
+parallel="${COLLECT_PARALLEL:-1}"
+steps="${STEPS:-600}"
+batch="${BATCH:-16}"
+lr="${LR:-0.002}"
+eval_frames="${EVAL_FRAMES:-150}"
+settings="${SETTINGS:-ddim:10,dpm:10}"
+conditioning="${CONDITIONING:-plane+embedding}"
 
 if [[ ! -x "$bin/rig" ]]; then
     echo "error: $bin/rig not found: run 'bash scripts/setup.sh' first" >&2
@@ -27,31 +40,83 @@ if [[ -e "$out" ]]; then
     echo "error: $out exists: pass another output folder" >&2
     exit 2
 fi
+for knob in STEPS BATCH EVAL_FRAMES; do
+    value="${!knob:-1}"
+    if ! [[ "$value" =~ ^[1-9][0-9]{0,6}$ ]]; then
+        echo "error: $knob=$value: expected a whole number from 1 to 9999999" >&2
+        exit 2
+    fi
+done
+if [[ "$parallel" != 0 && "$parallel" != 1 ]]; then
+    echo "error: COLLECT_PARALLEL=$parallel: expected 0 or 1" >&2
+    exit 2
+fi
 mkdir -p "$out/runs"
+
+# Seconds each stage takes with the defaults on a quiet 2-core machine (docs/benchmarks.md); the
+# estimate scales them by the pace of the stages finished so far (common/eta.py).
+nfe=0  # network evaluations per evaluated frame: the settings' step counts added up
+IFS=, read -ra parts <<<"$settings"
+for part in "${parts[@]}"; do
+    [[ "${part#*:}" =~ ^[0-9]{1,4}$ ]] && nfe=$((nfe + ${part#*:}))
+done
+collect_s=$(( ((parallel)) && ((${#objects[@]} > 1)) ? 10 * ${#objects[@]} : 15 * ${#objects[@]} ))
+expected="$collect_s,1,1,$(( 8 + steps * batch / 100 )),$(( 10 + eval_frames * nfe / 300 + eval_frames / 30 ))"
+names=("collect ${#objects[@]} objects" "validate" "split" "train" "evaluate")
 start=$SECONDS
-n=$(( ${#objects[@]} + 4 ))
 i=0
-stage() { i=$((i + 1)); printf '\n\033[1m[%d/%d] %s\033[0m  (%ds so far)\n' "$i" "$n" "$*" "$((SECONDS - start))"; }
+stage() {
+    local left
+    left="$("$bin/python" -m common.eta "$expected" "$i" "$((SECONDS - start))" 2>/dev/null || echo "time left unknown")"
+    i=$((i + 1))
+    printf '\n\033[1m[%d/%d] %s\033[0m  (%s so far, %s)\n' "$i" "${#names[@]}" "$*" \
+        "$(fmt $((SECONDS - start)))" "$left"
+}
+fmt() { if (($1 < 60)); then echo "$1 s"; else printf '%d min %02d s' $(($1 / 60)) $(($1 % 60)); fi; }
+show() { printf '\033[2m$ %s\033[0m\n' "$*"; }
+run() { show "$@"; "$@"; }
+
+background=()
+stop_background() { for pid in "${background[@]}"; do kill "$pid" 2>/dev/null || true; done; }
+trap stop_background EXIT
 
 runs=()
-for obj in "${objects[@]}"; do
-    stage "collect $obj on the simulated rig: press/shear/twist at $speed mm/s, 1 Hz capture"
-    "$bin/rig" run-protocol "$obj" --sim --set "motion.speed_mm_s=$speed" --out "$out/runs/$obj.h5"
+stage "collect ${objects[*]} on the simulated rig: press/shear/twist at $speed mm/s, 1 Hz capture" \
+    "$( ((parallel)) && ((${#objects[@]} > 1)) && echo '(at the same time; the last one shows its progress)')"
+last=$(( ${#objects[@]} - 1 ))
+for k in "${!objects[@]}"; do
+    obj="${objects[$k]}"
+    cmd=("$bin/rig" run-protocol "$obj" --sim --set "motion.speed_mm_s=$speed" --out "$out/runs/$obj.h5")
     runs+=("$out/runs/$obj.h5")
+    if ((parallel)) && ((k < last)); then
+        show "${cmd[@]}" ">$out/runs/$obj.log 2>&1 &"
+        "${cmd[@]}" >"$out/runs/$obj.log" 2>&1 &
+        background+=($!)
+    else
+        run "${cmd[@]}"
+    fi
 done
+for k in "${!background[@]}"; do
+    if ! wait "${background[$k]}"; then
+        echo "error: collecting ${objects[$k]} failed: see $out/runs/${objects[$k]}.log" >&2
+        exit 1
+    fi
+    tail -n 3 "$out/runs/${objects[$k]}.log"
+done
+background=()
 
 stage "validate the run files"
-"$bin/dataset" validate "${runs[@]}"
+run "$bin/dataset" validate "${runs[@]}"
 
 stage "split 8:2 by frame"
-"$bin/dataset" split 8:2 "${runs[@]}" --out "$out/split"
+run "$bin/dataset" split 8:2 "${runs[@]}" --out "$out/split"
 
-stage "train the tiny preset on CPU for $steps steps (validation samples in $out/model/samples)"
-"$bin/train" --data "$out/split" --out "$out/model" --preset tiny --steps "$steps" --sample-every 500
+stage "train the tiny preset on CPU ($conditioning): $steps steps of $batch frames at learning rate $lr (validation samples in $out/model/samples)"
+run "$bin/train" --data "$out/split" --out "$out/model" --preset tiny --steps "$steps" --batch-size "$batch" --lr "$lr" \
+    --conditioning "$conditioning" --sample-every "$steps"
 
 stage "evaluate on up to $eval_frames held-out frames: $settings, and the physics render"
-"$bin/evaluate" --checkpoint "$out/model" --split "$out/split" --out "$out/report" --settings "$settings" \
+run "$bin/evaluate" --checkpoint "$out/model" --split "$out/split" --out "$out/report" --settings "$settings" \
     --limit "$eval_frames"
 
-printf '\n\033[1mdone in %dm%02ds.\033[0m  report: %s\n' "$(((SECONDS - start) / 60))" "$(((SECONDS - start) % 60))" \
-    "$out/report/report.md"
+printf '\n\033[1mdone in %s.\033[0m  report: %s\n' "$(fmt $((SECONDS - start)))" "$out/report/report.md"

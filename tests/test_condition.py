@@ -64,3 +64,28 @@ def test_a_non_square_object_image_is_refused(tmp_path):
     model = _model(16, 14 / 64, 64)
     with pytest.raises(ValueError, match="expected a square image"):
         model.condition(np.zeros((40, 60, 3), np.uint8), (0, 0, 0))
+
+
+@pytest.mark.parametrize("frame_px,size", [(64, 16), (16, 16)])
+def test_generate_physics_channels_equal_training_ones(tmp_path, frame_px, size):
+    """A physics model's extra channels: the training cache's render of a run frame, the one
+    `generate` renders from the checkpoint's record for the object at that pose, and the one
+    evaluate's plain items get, are the same image."""
+    from dataclasses import replace
+
+    from dataset.torch_dataset import TactileDataset, uint8_tensor_to_image
+    from model.inference import add_physics
+    from model.physics_condition import physics_cache, split_spec
+
+    split = make_split_dir(tmp_path, n=24, size=frame_px)
+    data = TactileDataset(split, "train", size=size, physics=physics_cache(split, "train", size))
+    plain = TactileDataset(split, "train", size=size)
+    model = _model(size, data.mm_per_px[0], frame_px)
+    model.cfg = replace(model.cfg, conditioning="physics+plane")
+    model.physics = split_spec(split)
+    items = [plain[i] for i in range(len(plain))]
+    add_physics(items, size)
+    for i in range(len(data)):
+        cached = uint8_tensor_to_image(data[i]["physics"])
+        assert np.array_equal(model.physics_image("sphere10mm", data[i]["pose"].numpy()), cached)
+        assert np.array_equal(uint8_tensor_to_image(items[i]["physics"]), cached)

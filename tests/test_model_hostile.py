@@ -70,7 +70,7 @@ def test_damaged_weights_are_named(run, tmp_path, content):
         (lambda m: m.update(step=-1), "[step]"),
         (lambda m: m.update(wrench_std=[0, 1, 1, 1, 1, 1]), "[wrench_std]"),
         (lambda m: m.update(mm_per_px="x"), "[mm_per_px]"),
-        (lambda m: m["model"].update(conditioning="telepathy"), "conditioning must be one of"),
+        (lambda m: m["model"].update(conditioning="telepathy"), "conditioning must be one or more of"),
     ],
 )
 def test_state_json_is_checked_before_use(run, tmp_path, edit, needle):

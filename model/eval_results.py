@@ -1,0 +1,54 @@
+"""What an evaluation holds: a metrics row per method, and one part's whole evaluation.
+
+Kept apart from model/evaluate.py (which computes them) so that the report writer
+(model/evaluation_report.py) reads them without importing the evaluation itself.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+PAPER_ROWS = [  # docs/reference.md, "The model, as the paper states it": real data, 0–255 scale
+    ("TACTO (RGB light)", 201.87, 10.31, 0.80, 25.43),
+    ("Taxim (RGB light)", 56.715, 5.14, 0.88, 31.12),
+    ("FOTS (RGB light)", 53.267, 4.91, 0.89, 32.30),
+    ("paper, RGB light", 21.00, 3.39, 0.97, 36.62),
+    ("paper, RGB light + markers", 28.02, 3.24, 0.95, 34.28),
+    ("paper, white light + markers", 67.09, 5.27, 0.81, 30.91),
+]
+PHYSICS = "physics render"
+
+
+@dataclass
+class Row:
+    setting: str
+    mse: float
+    mae: float
+    ssim: float
+    psnr: float
+    marker_px: float | None  # mean per marker over frames whose markers were found
+    seconds_per_image: float
+    images: int
+    marker_failures: int = 0  # frames where 18×18 markers could not be found/matched
+    network_evaluations: int = 0  # forward passes of the network per image (sampler steps); 0: not the model
+
+
+@dataclass
+class Evaluation:
+    rows: list[Row]  # this model, one per sampler setting
+    baseline: Row | None  # the physics render
+    baseline_note: str  # why there is no baseline row, when there is none
+    markers: bool
+    simulated: bool = False  # every frame came from the simulated rig
+    examples: dict[str, list[np.ndarray]] = field(default_factory=dict)  # column → BGR images of the example frames
+    example_labels: list[str] = field(default_factory=list)  # each example row's wrench and pose
+    context: dict[str, str] = field(default_factory=dict)  # what was evaluated, how, and on which machine
+    references: list[np.ndarray] = field(default_factory=list)  # each example's no-contact frame
+    part: str = "test"
+    objects: list[str] = field(default_factory=list)  # the objects whose frames the part holds
+    sweeps: list = field(default_factory=list)  # force_sweep.PoseSweep, one per (pose, component)
+    sweep_summary: list[dict] = field(default_factory=list)  # force_sweep.summarise of each
+    sweep_ranges: dict[str, tuple[float, float]] = field(default_factory=dict)
+    sweep_note: str = ""  # how the sweep was made, or why there is none

@@ -1,0 +1,186 @@
+"""Physics conditioning: the simulator's render of each frame at its measured pose, as condition channels.
+
+A ``physics`` model (``ModelConfig.uses_physics``) sees, beside the object image, the physics
+render of the frame (model/baseline.py's ``ObjectRender``: the split's object at the measured
+pose x, y, z, θ through the run's sensor profile, over the simulator's own background, no
+noise, no friction history), resized to the model's size like the frames. Rendering takes tens
+of milliseconds a frame, so a split part's renders are made once per size and kept next to the
+split (``physics_cache``); ``TactileDataset(physics=...)`` serves them as the ``physics`` item
+field. Inference renders the same image from what the checkpoint records (``PhysicsSpec``).
+
+Every run of the split must show a library object (the simulator knows its shape) and share one
+sensor kind and one sensor profile; otherwise ``PhysicsUnavailable`` says which run and why.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Callable
+
+import cv2
+import h5py
+import numpy as np
+
+from acquisition import schema as S
+from dataset.split import load_split
+from model.baseline import BaselineUnavailable, ObjectRender
+
+CACHE_DIR = "physics"  # inside the split directory
+CACHE_VERSION = 1  # bump when the render or the cache layout changes: every cache is rebuilt
+
+
+class PhysicsUnavailable(BaselineUnavailable):
+    """Physics conditioning asked for where the simulator cannot render the frames (one line)."""
+
+
+@dataclass(frozen=True)
+class PhysicsSpec:
+    """What renders a split's physics channels; recorded in a physics model's checkpoint."""
+
+    sensor_kind: str
+    profile_record: str  # the runs' sensor_profile attribute ("" : the shipped default profile)
+    mm_per_px: float  # the frames' scale...
+    frame_px: int  # ...at this many pixels across (the render's size before resizing)
+
+    def profile(self, where: str = "checkpoint"):
+        from sensor_sim.profile import ProfileError, default_profile, profile_from_record
+
+        if not self.profile_record:
+            return default_profile()
+        try:
+            return profile_from_record(self.profile_record, where=where)
+        except ProfileError as exc:
+            raise PhysicsUnavailable(str(exc)) from None
+
+    def renderer(self, obj: str, where: str = "") -> ObjectRender:
+        return ObjectRender(
+            obj, self.sensor_kind, self.profile(where or "checkpoint"), self.frame_px, self.mm_per_px, where=where
+        )
+
+    @classmethod
+    def from_meta(cls, raw, where: str) -> "PhysicsSpec":
+        """From a checkpoint's ``physics`` entry, checked (PhysicsUnavailable naming ``where``)."""
+        if not isinstance(raw, dict):
+            raise PhysicsUnavailable(f"{where}: [physics] expected the physics render's record, got {raw!r}")
+        kind, record, mm, px = (raw.get(k) for k in ("sensor_kind", "profile_record", "mm_per_px", "frame_px"))
+        if not isinstance(kind, str) or not isinstance(record, str):
+            raise PhysicsUnavailable(f"{where}: [physics] sensor_kind and profile_record must be text")
+        if not (isinstance(mm, (int, float)) and not isinstance(mm, bool) and np.isfinite(mm) and mm > 0):
+            raise PhysicsUnavailable(f"{where}: [physics] mm_per_px expected a positive number, got {mm!r}")
+        if not (isinstance(px, int) and not isinstance(px, bool) and 8 <= px <= 8192):
+            raise PhysicsUnavailable(f"{where}: [physics] frame_px expected a whole number in [8, 8192], got {px!r}")
+        return cls(kind, record, float(mm), px)
+
+    def to_meta(self) -> dict:
+        return asdict(self)
+
+
+def split_spec(split_dir: str | Path) -> PhysicsSpec:
+    """The split's PhysicsSpec, or PhysicsUnavailable naming the run the simulator cannot render."""
+    from objects.indenters import INDENTERS
+
+    manifest, _ = load_split(split_dir)
+    specs = set()
+    for run in manifest["runs"]:
+        path = run["path"]
+        with h5py.File(path, "r", swmr=True) as f:
+            attrs = dict(f.attrs)
+            h, w = f[S.FRAMES].shape[1:3]
+        obj = str(attrs.get(S.ATTR_OBJECT, ""))
+        if obj not in INDENTERS:
+            raise PhysicsUnavailable(
+                f"{path}: object {obj!r} is not one the simulator knows ({', '.join(INDENTERS)}): no physics "
+                "render, so no physics conditioning; train with --conditioning plane+embedding"
+            )
+        if h != w:
+            raise PhysicsUnavailable(f"{path}: frames are {w}x{h}; the simulator renders a square pad")
+        record = attrs.get(S.ATTR_SENSOR_PROFILE, "")
+        record = record.decode() if isinstance(record, bytes) else str(record)
+        mm = float(attrs.get(S.ATTR_MM_PER_PX, float("nan")))
+        if not (np.isfinite(mm) and mm > 0):
+            raise PhysicsUnavailable(f"{path}: mm_per_px {mm!r} is not a positive scale: no physics render")
+        specs.add(PhysicsSpec(str(attrs.get(S.ATTR_SENSOR_KIND, "rgb")), record, mm, int(w)))
+    if len(specs) != 1:
+        detail = "; ".join(f"{s.sensor_kind}, {s.mm_per_px:g} mm/px, {s.frame_px} px" for s in specs)
+        raise PhysicsUnavailable(
+            f"{split_dir}: physics conditioning needs one sensor kind, profile and scale across the runs; "
+            f"they differ ({detail})"
+        )
+    spec = specs.pop()
+    spec.profile(str(split_dir))  # a recorded profile that cannot be found again: one line now
+    return spec
+
+
+def cache_key(split_dir: str | Path, part: str, size: int) -> dict:
+    """What the cache depends on: the runs' fingerprints, the part's rows, the size, the render's inputs."""
+    manifest, parts = load_split(split_dir)
+    spec = split_spec(split_dir)
+    return {
+        "version": CACHE_VERSION,
+        "part": part,
+        "size": int(size),
+        "rows_sha1": hashlib.sha1(np.ascontiguousarray(parts[part]).tobytes()).hexdigest(),
+        "runs": [[r["path"], r.get("fingerprint", "")] for r in manifest["runs"]],
+        "spec": spec.to_meta(),
+    }
+
+
+def cache_path(split_dir: str | Path, part: str, size: int) -> Path:
+    return Path(split_dir) / CACHE_DIR / f"{part}-{size}px.npy"
+
+
+def physics_cache(
+    split_dir: str | Path, part: str, size: int, *, log: Callable[[str], None] = lambda line: None
+) -> Path:
+    """The part's physics renders at ``size`` px, (frames, size, size, 3) BGR uint8 in the split's
+    row order, as a .npy beside a .json of its key; rebuilt when the key differs (other runs,
+    rows, size, profile or render version). Returns the .npy's path."""
+    path = cache_path(split_dir, part, size)
+    key = cache_key(split_dir, part, size)
+    meta = path.with_suffix(".json")
+    if path.is_file() and meta.is_file():
+        try:
+            if json.loads(meta.read_text()) == key:
+                return path
+        except (OSError, json.JSONDecodeError):
+            pass
+        log(f"physics render cache {path}: stale (the split, size or profile changed); rebuilding")
+    manifest, parts = load_split(split_dir)
+    rows = parts[part]
+    spec = PhysicsSpec(**key["spec"])
+    images = np.zeros((len(rows), size, size, 3), np.uint8)
+    renderers: dict[int, ObjectRender] = {}
+    poses: dict[int, np.ndarray] = {}
+    step = max(1, len(rows) // 10)
+    log(f"physics render of {len(rows)} {part} frames at {size} px (once; cached in {path.parent})")
+    for k, (run, frame) in enumerate(rows):
+        run = int(run)
+        if run not in renderers:
+            run_path = manifest["runs"][run]["path"]
+            with h5py.File(run_path, "r", swmr=True) as f:
+                obj = str(f.attrs.get(S.ATTR_OBJECT, ""))
+                poses[run] = f[S.POSE_MEASURED][()]
+            renderers[run] = spec.renderer(obj, where=run_path)
+        images[k] = resize(renderers[run].render(poses[run][int(frame)]), size)
+        if (k + 1) % step == 0 or k + 1 == len(rows):
+            log(f"  physics render: {k + 1}/{len(rows)} frames")
+    # Each file replaced whole, images first: a reader (another process of a multi-GPU run, which
+    # renders the same images) never sees half a file, and a crash before the key leaves the old
+    # key, which no longer matches: the next run rebuilds.
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f"{path.stem}.{os.getpid()}.tmp.npy")
+    np.save(tmp, images)
+    os.replace(tmp, path)
+    tmp_meta = meta.with_name(f"{meta.stem}.{os.getpid()}.tmp.json")
+    tmp_meta.write_text(json.dumps(key, indent=1) + "\n")
+    os.replace(tmp_meta, meta)
+    return path
+
+
+def resize(bgr: np.ndarray, size: int) -> np.ndarray:
+    """As the dataset resizes a frame to the model's size."""
+    return bgr if bgr.shape[0] == size else cv2.resize(bgr, (size, size), interpolation=cv2.INTER_AREA)
