@@ -19,6 +19,8 @@ import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
+from common.eta import time_left
+
 SUFFIX = ".progress.json"
 WRITE_EVERY_S = 0.5  # at most two writes a second: a few hundred bytes each
 STALE_AFTER_S = 30.0  # no write for this long: the writer is gone (or hung)
@@ -82,7 +84,8 @@ class ProgressWriter:
         done = p.frame - f0
         remaining = max(0, p.frames - p.frame)
         # wall seconds per frame so far (a simulated run is faster or slower than protocol time)
-        eta_s = (now - t0) / done * remaining if done > 0 and now > t0 else max(0.0, p.duration_s - p.t_protocol_s)
+        left = time_left(done, done + remaining, now - t0) if now > t0 else None
+        eta_s = left if left is not None else max(0.0, p.duration_s - p.t_protocol_s)
         level = int(p.level)
         depth = self.levels_mm[level - 1] if 1 <= level <= len(self.levels_mm) else None
         self._write(
