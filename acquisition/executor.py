@@ -144,9 +144,13 @@ class Acquisition:
             self.m.move(lateral)
         self.m.move({"z": self._safe_z()}, speed)
 
-    def _capture_frame(self, trigger_t: float):
+    def _capture_frame(self, trigger_t: float, *, triggered: bool = False):
+        """The first frame at or after ``trigger_t``; ``triggered``: the camera was already
+        asked for it (the capture loop triggers before the safety check: a triggered frame
+        is of the capture instant, and on its way while the rig is checked)."""
         cam = self.rig.camera
-        cam.trigger()
+        if not triggered:
+            cam.trigger()
         while True:
             frame = cam.read(timeout_s=5.0)
             if frame.t_s >= trigger_t - 1e-9:
@@ -357,12 +361,15 @@ class Acquisition:
             if now >= t_step - 1e-9:
                 start_step(next_step)
                 next_step += 1
+            capturing = now >= t_capture - 1e-9
+            if capturing:  # exposed at the capture instant, before the checks below (which may step the clock)
+                self.rig.camera.trigger()
             if now >= next_monitor - 1e-9:
                 # With nothing moving this is the plain force check under the rig's own limits.
                 moving = m.monitor(moving, guard if moving else rig.guard, "protocol")
                 self._collect_stream()  # the gauge buffer holds seconds: empty it between captures
                 next_monitor = now + self.monitor_interval_s
-            if now >= t_capture - 1e-9:
+            if capturing:
                 self._capture(writer, k, t_capture, moving, result)
                 k += 1
         # The last step finishes under its guard, and the wrench after it has to pass too.
@@ -370,7 +377,7 @@ class Acquisition:
 
     def _capture(self, writer: RunWriter, k: int, t_trigger: float, moving: set[str], result: RunResult) -> None:
         t_prot = self.plan.capture_time(k)
-        frame = self._capture_frame(t_trigger)
+        frame = self._capture_frame(t_trigger, triggered=True)
         wrench, skew = self.rig.gauge.sample_at(frame.t_s)
         step, _ = self.plan.locate(t_prot)
         self._collect_stream()

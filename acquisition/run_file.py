@@ -151,12 +151,15 @@ class RunWriter:
         self.lock = lock
         self.n = f[S.FRAMES].shape[0]
         self._frames = f[S.FRAMES]
+        self._frame_shape = self._frames.shape[1:]
         # the fields this file has: an older file lacks the optional ones added since
         self._rows = {fl.path: f[fl.path] for fl in S.PER_FRAME_FIELDS if fl.path in f}
         self._rows_len = min(d.shape[0] for d in self._rows.values())
         self._stream = f.get(S.WRENCH_STREAM)
         self._stream_n = self._stream.shape[0] if self._stream is not None else 0  # rows counted
         self.phases = decode_phases(f)
+        self._row_spaces: dict[str, tuple] = {}  # per row dataset: (memory space, file space) of one row
+        self._stream_layout: tuple[tuple[int, ...], np.dtype] | None = None  # the stream's row shape and dtype
         self._failure = ""  # set when a write failed: the file is closed with it as its reason
 
     @classmethod
@@ -314,6 +317,7 @@ class RunWriter:
         return True
 
     def _truncate_to(self, n: int) -> None:
+        self._row_spaces = {}
         for d in [self._frames, *self._rows.values()]:
             if d.shape[0] != n:
                 d.resize(n, axis=0)
@@ -364,8 +368,8 @@ class RunWriter:
             raise RunFileError(f"{self.path}: {self._failure}")
         i = self.n
         frames = self._frames
-        if frame.shape != frames.shape[1:]:
-            raise RunFileError(f"{self.path}: frame shape {frame.shape} differs from the run's {frames.shape[1:]}")
+        if frame.shape != self._frame_shape:
+            raise RunFileError(f"{self.path}: frame shape {frame.shape} differs from the run's {self._frame_shape}")
         self._check_row(i, row)
         self._check_space(i, frame.nbytes)
         try:
@@ -373,23 +377,56 @@ class RunWriter:
             # the frame count is the number of valid rows, so a crash in between leaves a
             # row without a frame (trimmed on resume), never a frame without its row.
             if stream is not None and len(stream) and self._stream is not None:
-                m = self._stream_n
-                self._stream.resize(m + len(stream), axis=0)
-                self._stream[m:] = stream
+                self._write_stream(np.asarray(stream))
             if self._rows_len <= i:
                 for d in self._rows.values():
                     d.resize(i + ROW_BLOCK, axis=0)
                 self._rows_len = i + ROW_BLOCK
+                self._row_spaces = {}  # the datasets grew: their file spaces are new
             for name, d in self._rows.items():
-                d[i] = row[name]
-            frames.resize(i + 1, axis=0)
+                self._write_row(name, d, i, row[name])
+            frames.id.set_extent((i + 1, *self._frame_shape))  # frames.resize(i + 1, axis=0), without its checks
             frames[i] = frame
             self.f.flush()
         except (OSError, RuntimeError) as exc:  # h5py reports a failed flush as RuntimeError
             raise self._fail(i, exc) from None
         self.n = i + 1
-        if self._stream is not None:
-            self._stream_n = self._stream.shape[0]
+        if stream is not None and len(stream) and self._stream is not None:
+            self._stream_n += len(stream)
+
+    def _write_stream(self, stream: np.ndarray) -> None:
+        """``self._stream[m:] = stream`` after growing it by ``len(stream)`` rows, through
+        h5py's low-level calls: the same bytes in the same chunks."""
+        d = self._stream
+        assert d is not None
+        if self._stream_layout is None:  # h5py's Dataset.shape and .dtype ask HDF5 each time
+            self._stream_layout = (d.shape[1:], d.dtype)
+        width, dtype = self._stream_layout
+        m = self._stream_n
+        data = np.ascontiguousarray(stream, dtype=dtype)
+        if data.shape[1:] != width:
+            raise ValueError(f"{self.path}: {S.WRENCH_STREAM}: rows of shape {data.shape[1:]}, the field's are {width}")
+        d.id.set_extent((m + len(data), *width))
+        file = d.id.get_space()
+        file.select_hyperslab((m, *(0,) * len(width)), data.shape)
+        d.id.write(h5py.h5s.create_simple(data.shape), file, data)
+
+    def _write_row(self, name: str, d: h5py.Dataset, i: int, value) -> None:
+        """``d[i] = value`` through h5py's low-level write: the same bytes in the same
+        chunk, without the high-level indexing (ten fields a frame, most of the writer's
+        Python time). The value is converted to the field's dtype as ``d[i] =`` would,
+        a wrong shape refused as it would be."""
+        cached = self._row_spaces.get(name)
+        if cached is None:  # h5py's Dataset.shape and .dtype ask HDF5 each time: once per block
+            shape = d.shape[1:]
+            cached = (h5py.h5s.create_simple((1, *shape)), d.id.get_space(), d.dtype, shape, (0,) * len(shape))
+            self._row_spaces[name] = cached
+        memory, file, dtype, shape, zeros = cached
+        data = np.asarray(value, dtype=dtype)
+        if data.shape != shape:
+            raise ValueError(f"{self.path}: {name}: value of shape {data.shape}, the field is {shape}")
+        file.select_hyperslab((i, *zeros), (1, *shape))
+        d.id.write(memory, file, np.ascontiguousarray(data).reshape(1, *shape))
 
     def _check_row(self, i: int, row: Mapping) -> None:
         """Every field of this file in ``row``, nothing outside the schema's table (a typo

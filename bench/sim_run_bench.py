@@ -120,6 +120,8 @@ def child(args) -> None:
     }
     if args.profile:
         report["stages"] = stages(profilers, Path(args.root).resolve())
+        if args.pstats:
+            merged(profilers).dump_stats(args.pstats)
     if args.dump:
         import h5py
 
@@ -133,6 +135,16 @@ def child(args) -> None:
 def stages(profilers, root: Path) -> dict[str, float]:
     """Seconds per stage: each function's own time, library functions' time handed to
     the project functions that called them (split as their calls' own times were)."""
+    stats = merged(profilers)
+    if stats is None:
+        return {}
+    table = stats.stats
+    root_s = str(root) + "/"
+    return _stage_totals(table, root_s)
+
+
+def merged(profilers):
+    """Every thread's cProfile merged into one pstats.Stats (None: nothing ran)."""
     import pstats
 
     stats = None
@@ -145,11 +157,10 @@ def stages(profilers, root: Path) -> dict[str, float]:
             stats = st
         else:
             stats.add(st)
-    if stats is None:
-        return {}
-    table = stats.stats  # type: ignore[attr-defined]
-    root_s = str(root) + "/"
+    return stats
 
+
+def _stage_totals(table, root_s: str) -> dict[str, float]:
     def own_stage(func) -> str | None:
         filename, _, name = func
         if filename.startswith(root_s) and "/.venv/" not in filename and "site-packages" not in filename:
@@ -262,6 +273,7 @@ def main() -> None:
     ap.add_argument("--no-noise", action="store_true", help=argparse.SUPPRESS)
     ap.add_argument("--dump", help=argparse.SUPPRESS)
     ap.add_argument("--exact", action="store_true", help=argparse.SUPPRESS)
+    ap.add_argument("--pstats", help=argparse.SUPPRESS)  # child: write the merged profile here
     args = ap.parse_args()
     if args.set is None:
         args.set = list(DEFAULT_SETTINGS)
@@ -284,7 +296,7 @@ def main() -> None:
                 print(
                     f"  run {i + 1} {side}: {r['frames']} frames, run {r['run_s']:.1f} s "
                     f"({r['frames'] / r['run_s']:.1f} frames/s), whole process {r['wall_s']:.1f} s, "
-                    f"cpu {r['cpu_s']:.1f} s, solves {r['solves']}",
+                    f"cpu {r['cpu_s']:.1f} s, solves {r['solves']}, load {os.getloadavg()[0]:.1f}",
                     flush=True,
                 )
         print()

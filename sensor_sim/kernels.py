@@ -19,6 +19,11 @@ import math
 import numpy as np
 import scipy.fft as sfft
 
+try:  # scipy.fft's own transforms without its per-call argument handling (most of a small FFT's cost)
+    from scipy.fft._pocketfft import pypocketfft as _pocketfft
+except ImportError:  # another scipy: the public calls, the same numbers
+    _pocketfft = None
+
 from sensor_sim.elastomer import Elastomer
 
 
@@ -267,8 +272,8 @@ class Kernels:
     def convolve(self, field_hat_kernel: np.ndarray, field: np.ndarray) -> np.ndarray:
         """Linear (zero-padded) convolution; the kernel's dtype sets the precision."""
         dtype = np.float64 if field_hat_kernel.dtype == np.complex128 else np.float32
-        padded = sfft.rfft2(field.astype(dtype, copy=False), s=self.shape, workers=1)
-        out = sfft.irfft2(padded * field_hat_kernel, s=self.shape, workers=1)[: self.ny, : self.nx]
+        padded = rfft2_padded(field.astype(dtype, copy=False), self.shape)
+        out = irfft2_full(padded * field_hat_kernel, self.shape)[: self.ny, : self.nx]
         return out.astype(np.float64)
 
     def normal_displacement(self, p: np.ndarray, *, precise: bool = False) -> np.ndarray:
@@ -279,11 +284,57 @@ class Kernels:
     ) -> tuple[np.ndarray, np.ndarray]:
         kxx, kyy, kxy = self.tangential_hat64 if precise else self.tangential_hat
         dtype = np.float64 if precise else np.float32
-        fx = sfft.rfft2(qx.astype(dtype, copy=False), s=self.shape, workers=1)
-        fy = sfft.rfft2(qy.astype(dtype, copy=False), s=self.shape, workers=1)
-        ux = sfft.irfft2(kxx * fx + kxy * fy, s=self.shape, workers=1)[: self.ny, : self.nx]
-        uy = sfft.irfft2(kxy * fx + kyy * fy, s=self.shape, workers=1)[: self.ny, : self.nx]
+        fx = rfft2_padded(qx.astype(dtype, copy=False), self.shape)
+        fy = rfft2_padded(qy.astype(dtype, copy=False), self.shape)
+        ux = irfft2_full(kxx * fx + kxy * fy, self.shape)[: self.ny, : self.nx]
+        uy = irfft2_full(kxy * fx + kyy * fy, self.shape)[: self.ny, : self.nx]
         return ux.astype(np.float64), uy.astype(np.float64)
+
+
+def rfft2_padded(field: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+    """``scipy.fft.rfft2(field, s=shape, axes=(-2, -1))``: zero-padded to ``shape`` over the
+    last two axes (float32 or float64 ``field``), the same pocketfft transform called
+    directly (bit for bit, tested): a solve makes a few dozen transforms of small crops."""
+    ny, nx = field.shape[-2:]
+    if _pocketfft is None or field.dtype not in (np.float32, np.float64) or ny > shape[0] or nx > shape[1]:
+        return sfft.rfft2(field, s=shape, axes=(-2, -1), workers=1)
+    padded = np.zeros((*field.shape[:-2], *shape), field.dtype)
+    padded[..., :ny, :nx] = field
+    nd = padded.ndim
+    return _pocketfft.r2c(padded, (nd - 2, nd - 1), True, 0, None, 1)
+
+
+def irfft2_full(spectrum: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+    """``scipy.fft.irfft2(spectrum, s=shape, axes=(-2, -1))`` for a spectrum of ``rfft2_padded``
+    at ``shape`` (complex64 or complex128), called directly as that is."""
+    if (
+        _pocketfft is None
+        or spectrum.dtype not in (np.complex64, np.complex128)
+        or spectrum.shape[-2:] != (shape[0], shape[1] // 2 + 1)
+    ):
+        return sfft.irfft2(spectrum, s=shape, axes=(-2, -1), workers=1)
+    nd = spectrum.ndim
+    return _pocketfft.c2r(spectrum, (nd - 2, nd - 1), shape[1], False, 2, None, 1)
+
+
+def direct_transforms() -> bool:
+    """True when pocketfft can be called directly (``r2c_2d``, ``c2r_2d``)."""
+    return _pocketfft is not None
+
+
+def r2c_2d(padded: np.ndarray) -> np.ndarray:
+    """``rfft2_padded`` of a field already zero-padded to the transform's shape (float32
+    or float64, the last two axes): pocketfft's forward transform, nothing else."""
+    assert _pocketfft is not None, "direct_transforms() is False: use rfft2_padded"
+    nd = padded.ndim
+    return _pocketfft.r2c(padded, (nd - 2, nd - 1), True, 0, None, 1)
+
+
+def c2r_2d(spectrum: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+    """``irfft2_full`` without its checks (a spectrum of ``r2c_2d`` at ``shape``)."""
+    assert _pocketfft is not None, "direct_transforms() is False: use irfft2_full"
+    nd = spectrum.ndim
+    return _pocketfft.c2r(spectrum, (nd - 2, nd - 1), shape[1], False, 2, None, 1)
 
 
 @functools.lru_cache(maxsize=16)

@@ -172,40 +172,59 @@ class Camera:
         # when asked, as a hardware-triggered camera does; free-running ones ignore it.
         self.triggered = bool(getattr(source, "triggered", False))
         self._trigger = threading.Semaphore(discard_frames if self.triggered else 0)
+        self._reading = threading.Lock()  # one source read at a time (the grabber, or a trigger that renders)
         self._thread = threading.Thread(target=self._grab, name=f"grab-{name}", daemon=True)
         self._thread.start()
 
     def trigger(self) -> None:
-        """Ask a triggered source for one frame; a no-op for free-running cameras."""
-        if self.triggered:
-            self._trigger.release()
+        """Ask a triggered source for one frame; a no-op for free-running cameras.
+
+        A source that renders on trigger (the simulated camera on the discrete-event clock)
+        makes the frame here, in the calling thread: the frame is of this instant either
+        way, and handing it to the grabber thread and back only costs two thread switches.
+        """
+        if not self.triggered:
+            return
+        if getattr(self.source, "renders_on_trigger", False) and not self.ended and self.error is None:
+            # the frames dropped after opening come from the grabber first, so they stay the dropped ones
+            self.wait_arrived(self.discard_frames, timeout_s=5.0)
+            self._take_one()
+            return
+        self._trigger.release()
 
     def _grab(self) -> None:
         while not self._stop.is_set():
             if self.triggered and not self._trigger.acquire(timeout=0.1):
                 continue
+            if not self._take_one():
+                return
+
+    def _take_one(self) -> bool:
+        """Read one frame from the source and publish it; False once the source failed or ended."""
+        with self._reading:
             try:
                 ok, image = self.source.read()
             except Exception as exc:  # kept and raised to the reader; never swallowed
                 with self._cond:
                     self.error = exc
                     self._cond.notify_all()
-                return
+                return False
             # Prefer the source's exposure time (the simulator knows it); else arrival.
             t = getattr(self.source, "last_exposure_s", None) or self.clock.now()
-            if not ok or image is None:
-                with self._cond:
-                    self.ended = True
-                    self._cond.notify_all()
-                return
+        if not ok or image is None:
             with self._cond:
-                self._arrived += 1
+                self.ended = True
                 self._cond.notify_all()
-                if self._arrived <= self.discard_frames:
-                    continue  # first frames after opening are dark or not yet exposed
-                index = self._newest.index + 1 if self._newest else 0
-                self._newest = Frame(t_s=t, index=index, image=image)
-                self._cond.notify_all()
+            return False
+        with self._cond:
+            self._arrived += 1
+            self._cond.notify_all()
+            if self._arrived <= self.discard_frames:
+                return True  # first frames after opening are dark or not yet exposed
+            index = self._newest.index + 1 if self._newest else 0
+            self._newest = Frame(t_s=t, index=index, image=image)
+            self._cond.notify_all()
+        return True
 
     def read(self, timeout_s: float = 1.0) -> Frame:
         """The newest frame not returned before. Raises DeviceTimeout or DeviceDisconnected."""

@@ -76,6 +76,15 @@ def encode_stream_frame(values: np.ndarray) -> bytes:
     return append_crc(FRAME_HEADER + struct.pack("<6h", *counts))
 
 
+def encode_stream_frames(values: np.ndarray) -> list[bytes]:
+    """``encode_stream_frame`` of each row of ``values`` (n, 6): the same bytes, the
+    counts of all rows rounded in one numpy call (a simulator sends many per tick)."""
+    from rig.transport.crc import append_crc
+
+    counts = np.clip(np.round(np.asarray(values, dtype=np.float64) / COUNTS_TO_UNITS), -32768, 32767)
+    return [append_crc(FRAME_HEADER + row.tobytes()) for row in counts.astype("<i2")]
+
+
 class FT300(GaugeBase):
     def __init__(
         self,
@@ -169,6 +178,22 @@ class FT300(GaugeBase):
                 raise DeviceDisconnected(self.label, "stream read", None, f"stream port failed: {exc}") from exc
 
         return read_chunk
+
+    def _stream_inline(self):
+        # Only against an inline-served simulator in this process (a pty on the discrete
+        # clock, rig/sim/link.py): hardware, tcp and `rig sim serve`'s clients keep the
+        # reader thread alone.
+        link = self.bus.link
+        if not link.inline_peer() or not link.can_wait_readable():
+            return None
+
+        def take() -> bytes:
+            try:
+                return link.read_waiting()
+            except DeviceDisconnected as exc:
+                raise DeviceDisconnected(self.label, "stream read", None, f"stream port failed: {exc}") from exc
+
+        return link.wait_readable, take, link.in_flight
 
     def _stream_close(self) -> None:
         link = self.bus.link

@@ -4,7 +4,6 @@ and the gauge behaviour (tare, fresh reads) shared by every gauge driver.
 
 from __future__ import annotations
 
-import bisect
 import collections
 import threading
 from typing import Any, Callable, Protocol
@@ -88,13 +87,31 @@ class WrenchBuffer:
             self.total += 1
             self._cond.notify_all()
 
+    def push_many(self, samples: list[Wrench]) -> None:
+        """``push`` each, with one wake-up of the waiting readers."""
+        if not samples:
+            return
+        with self._cond:
+            self._samples.extend(samples)
+            self.total += len(samples)
+            self._cond.notify_all()
+
     def latest(self) -> Wrench | None:
         with self._cond:
             return self._samples[-1] if self._samples else None
 
     def since(self, t_s: float) -> list[Wrench]:
+        """Samples stamped after ``t_s``, oldest first. Stamps never go back, so the scan
+        starts at the newest end and stops at the first older one: a reader emptying the
+        buffer between captures touches only what came since (not all 4096)."""
         with self._cond:
-            return [s for s in self._samples if s.t_s > t_s]
+            out = []
+            for s in reversed(self._samples):
+                if s.t_s <= t_s:
+                    break
+                out.append(s)
+        out.reverse()
+        return out
 
     def wait_new(self, after_total: int, n: int, timeout_s: float) -> bool:
         """Block (real time, bounded) until ``n`` samples arrived after ``after_total``."""
@@ -109,16 +126,21 @@ class WrenchBuffer:
     def at(self, t_s: float) -> tuple[np.ndarray, float]:
         """Wrench interpolated at ``t_s`` and the distance (s) to the nearest sample."""
         with self._cond:
-            samples = list(self._samples)
-        if not samples:
-            raise LookupError("no samples")
-        times = [s.t_s for s in samples]
-        # bisect_right: among samples stamped exactly t_s (one burst), the newest wins.
-        i = bisect.bisect_right(times, t_s)
-        if i == 0 or i == len(samples):
-            s = samples[0] if i == 0 else samples[-1]
-            return s.as_array(), abs(s.t_s - t_s)
-        a, b = samples[i - 1], samples[i]
+            if not self._samples:
+                raise LookupError("no samples")
+            # The first sample stamped after t_s, searched from the newest end (a capture asks
+            # about the last moments): bisect_right, so that among samples stamped exactly t_s
+            # (one burst) the newest wins.
+            n = len(self._samples)
+            i = n
+            for s in reversed(self._samples):
+                if s.t_s <= t_s:
+                    break
+                i -= 1
+            if i == 0 or i == n:
+                s = self._samples[0] if i == 0 else self._samples[-1]
+                return s.as_array(), abs(s.t_s - t_s)
+            a, b = self._samples[i - 1], self._samples[i]
         w = (t_s - a.t_s) / (b.t_s - a.t_s) if b.t_s > a.t_s else 0.0
         return a.as_array() * (1 - w) + b.as_array() * w, min(t_s - a.t_s, b.t_s - t_s)
 
@@ -131,6 +153,12 @@ class FrameCutter(Protocol):
     bytes_skipped: int
 
     def feed(self, data: bytes) -> list[bytes]: ...
+
+
+# (wait up to a timeout for bytes to read; take what has arrived without waiting; bytes an
+# in-process simulator has sent that were not read yet)
+Inline = tuple[Callable[[float], bool], Callable[[], bytes], Callable[[], int]]
+IN_FLIGHT_WAITS = 200  # × up to STREAM_POLL_S real: bytes on the way are waited for, ~4 s at most
 
 
 class StreamReader:
@@ -148,8 +176,15 @@ class StreamReader:
         buffer: WrenchBuffer,
         clock: Clock,
         name: str,
+        inline: Inline | None = None,
     ):
+        """``inline``: (wait until bytes are there, up to a timeout; take what is there
+        without waiting; bytes an in-process simulator sent that were not read yet). With
+        it, the thread only waits for bytes and takes them under a lock, and a caller
+        waiting for a sample can take them itself (``take_now``)."""
         self.read_chunk = read_chunk
+        self._inline = inline
+        self._take = threading.Lock()  # one taker at a time: chunks are cut and buffered in order
         self.sync = sync
         self.decode = decode
         self.buffer = buffer
@@ -160,17 +195,67 @@ class StreamReader:
         self._thread.start()
 
     def _run(self) -> None:
+        empty = 0  # times in a row the line was readable and had nothing to take
         while not self._stop.is_set():
             try:
+                if self._inline is not None:
+                    if not self._inline[0](STREAM_POLL_S):
+                        empty = 0
+                        continue
+                    if self.take_now():
+                        empty = 0
+                        continue
+                    empty += 1
+                    if empty < 3:
+                        continue  # another caller took the bytes first
+                    # Readable with nothing to take: a hung-up line; the plain read says why.
+                    with self._take:
+                        data = self.read_chunk()
+                        if data:
+                            self._cut(data)
+                    empty = 0  # it did not fail: the line is alive
+                    continue
                 data = self.read_chunk()
             except DeviceError as exc:
                 self.error = exc
                 return
-            if not data:
-                continue
-            t = self.clock.now()  # host time at arrival
-            for frame in self.sync.feed(data):
-                self.buffer.push(Wrench.from_array(t, self.decode(frame)))
+            if data:
+                self._cut(data)
+
+    def _cut(self, data: bytes) -> None:
+        t = self.clock.now()  # host time at arrival
+        self.buffer.push_many([Wrench.from_array(t, self.decode(frame)) for frame in self.sync.feed(data)])
+
+    @property
+    def inline(self) -> bool:
+        """True when callers can take the stream's bytes themselves (``take_now``)."""
+        return self._inline is not None
+
+    def take_in_flight(self) -> None:
+        """Wait (real time, bounded) until the bytes a simulator in this process already
+        sent have been taken: the kernel hands pty bytes over asynchronously."""
+        if self._inline is None:
+            return
+        ready, _, in_flight = self._inline
+        for _ in range(IN_FLIGHT_WAITS):
+            self.take_now()
+            if not in_flight():
+                return
+            ready(STREAM_POLL_S)
+
+    def take_now(self) -> bool:
+        """Take and buffer what has arrived, in the calling thread; True if anything had.
+
+        A caller about to wait for a sample calls this first: on a simulated rig's
+        discrete clock the bytes are already on the line (written when the clock moved),
+        and taking them here saves handing them to this thread and back."""
+        if self._inline is None:
+            return False
+        with self._take:
+            data = self._inline[1]()
+            if data:
+                self._cut(data)
+        return bool(data)
 
     def check(self) -> None:
         if self.error is not None:
@@ -212,6 +297,11 @@ class GaugeBase:
         """Stop streaming and drop what is still in flight."""
         raise NotImplementedError
 
+    def _stream_inline(self) -> Inline | None:
+        """(wait for bytes, take what arrived, bytes in flight) of the open stream, for
+        ``StreamReader``'s ``inline``; None: the reader thread alone reads (the default)."""
+        return None
+
     def make_sync(self) -> FrameCutter:
         raise NotImplementedError
 
@@ -226,7 +316,9 @@ class GaugeBase:
     def start_stream(self) -> None:
         if self._reader is None:
             read_chunk = self._stream_open()
-            self._reader = StreamReader(read_chunk, self.make_sync(), self.decode, self.buffer, self.clock, self.name)
+            self._reader = StreamReader(
+                read_chunk, self.make_sync(), self.decode, self.buffer, self.clock, self.name, self._stream_inline()
+            )
 
     def stop_stream(self) -> None:
         if self._reader is not None:
@@ -250,8 +342,19 @@ class GaugeBase:
         On hardware that is only a longer wait. On a simulated discrete-event clock,
         time moves only when someone sleeps, and the next sample is due only then.
         """
+        # On a discrete-event clock with the stream taken inline, what has arrived is in the
+        # buffer once take_now returns, and nothing more can arrive until the clock moves:
+        # waiting in real time would only lose time, and on a loaded machine make the number
+        # of clock steps (and so the simulated run) depend on the machine's load.
+        reader = self._reader
+        discrete = reader is not None and reader.inline and hasattr(self.clock, "add_listener")
         for _ in range(self.AWAIT_TRIES):
-            if wait(0.025):
+            if reader is not None:
+                if discrete:
+                    reader.take_in_flight()
+                else:
+                    reader.take_now()
+            if wait(0.0 if discrete else 0.025):
                 return
             if self._reader is not None:
                 self._reader.check()
@@ -263,9 +366,12 @@ class GaugeBase:
             return Wrench.from_array(self.clock.now(), self._poll_raw())
         self._reader.check()
         sample = self.buffer.latest()
-        if sample is None or self.clock.now() - sample.t_s > self.stale_after_s:
-            before = self.buffer.total
-            self._await(lambda timeout: self.buffer.wait_new(before, 1, timeout_s=timeout), "stream")
+        now = self.clock.now()
+        if sample is None or now - sample.t_s > self.stale_after_s:
+            # A sample fresh at ``now``: one that arrived between the check above and this
+            # wait counts (waiting for one more than the count would step the clock for nothing).
+            fresh = now - self.stale_after_s
+            self._await(lambda timeout: self.buffer.wait_after(fresh, timeout), "stream")
             sample = self.buffer.latest()
             assert sample is not None  # _await returns only once a sample has arrived
         return sample

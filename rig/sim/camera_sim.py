@@ -58,6 +58,12 @@ class SimCameraSource:
         self.triggered = triggered  # render only when the Camera is triggered (acquisition)
         self.last_exposure_s: float | None = None
 
+    @property
+    def renders_on_trigger(self) -> bool:
+        """Triggered on the discrete-event clock: the camera driver may render in the
+        triggering thread (rig/drivers/camera.py), the frame is of that instant anyway."""
+        return self.triggered and hasattr(self.clock, "add_listener")
+
     def render_now(self):
         self.last_exposure_s = self.clock.now()
         contact = self.world.contact

@@ -62,6 +62,11 @@ class FaultInjector:
             self._stall += n
             self._stall_s = real_s
 
+    @property
+    def stall_armed(self) -> bool:
+        """A stall is waiting for the next input (only the simulator's own thread may take it)."""
+        return self._stall > 0
+
     def take_stall(self) -> float:
         """Real seconds the simulator thread should stall now (0 when none is armed)."""
         with self._lock:

@@ -30,6 +30,8 @@ def _words(raw: bytes) -> list[int]:
 
 
 class _Registers:
+    serves_inline = True  # pure computation on the simulated world (rig/sim/link.py: SimServer.inline)
+
     def __init__(self, sim: "Ft300Sim"):
         self.sim = sim
         serial = _words(SERIAL_PREFIX) + [SERIAL_NUMBER & 0xFFFF, SERIAL_NUMBER >> 16]  # 510-513
@@ -95,4 +97,4 @@ class Ft300Sim(RtuServer):
             self._stream_at_first_tick = False
             self.schedule.start(now_s)
         times = self.schedule.due(now_s)
-        return [ft.encode_stream_frame(w) for w in self.world.gauge_samples(times)]
+        return ft.encode_stream_frames(self.world.gauge_samples(times)) if times else []

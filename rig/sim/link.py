@@ -85,6 +85,12 @@ class SimServer:
         self._processed_in = 0  # bytes fed to the model and answered (replies queued)
         self.stall_limit_s = STALL_LIMIT_S
         self._discrete = hasattr(clock, "add_listener")  # time moves only when advanced
+        # Served inline (``serve_now``): a pty read by drivers in this process on a discrete
+        # clock, and a model that declares itself non-blocking (the built-in device models:
+        # pure computation on the simulated world). A wrapper that may stall or hang (a test's
+        # stalling model) declares nothing, and keeps the threaded path and its bounded timeout.
+        self.inline = self._discrete and transport == "pty" and getattr(model, "serves_inline", False) is True
+        self._stalled = False  # an inline server's thread holds a request through a stall
         if transport == "pty":
             self._master, self._slave = pty.openpty()
             tty.setraw(self._slave)
@@ -130,6 +136,14 @@ class SimServer:
                     self._conn, _ = self._listen.accept()
                     self._conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
                     continue
+                if self.inline:
+                    # A waiting driver may serve its own request (serve_now): read and answer
+                    # under the model lock, so that the model sees the bytes in their order.
+                    try:
+                        self._serve_inline_thread()
+                    except OSError:
+                        return
+                    continue
                 conn = self._conn  # tcp: the accepted connection (the listening socket was handled above)
                 try:
                     data = os.read(self._master, 65536) if conn is None else conn.recv(65536)
@@ -147,6 +161,58 @@ class SimServer:
                     self._queue(self.model.feed(data, self.clock.now()))
                     self._processed_in += len(data)
             self.pump()
+
+    def _serve_inline_thread(self) -> None:
+        """This thread's turn at an inline server's pty: what the host left on the line,
+        read and answered under the model lock (a driver's ``serve_now`` may have taken it
+        first). An armed stall is taken here, outside the lock and with ``serve_now``
+        refusing meanwhile, so the stalled request is answered after the stall, in order."""
+        with self._model_lock:
+            fd = self._master
+            if fd < 0 or not select.select([fd], [], [], 0)[0]:
+                return
+            data = os.read(fd, 65536)
+            self.bytes_in += len(data)
+            stall_s = self.faults.take_stall()
+            if not stall_s:
+                self._feed_locked(data)
+                return
+            self._stalled = True
+        try:
+            self._stop.wait(stall_s)  # a thread starved of CPU: real time, no simulated time
+        finally:
+            with self._model_lock:
+                self._stalled = False
+                self._feed_locked(data)
+
+    def _feed_locked(self, data: bytes) -> None:
+        """Feed the host's bytes to the model and send what is due (the model lock held)."""
+        self._queue(self.model.feed(data, self.clock.now()))
+        self._processed_in += len(data)
+        self._queue(self.model.tick(self.clock.now()))
+        self._flush_due()
+
+    def serve_now(self) -> bool:
+        """Take what the host has written and answer it, in the calling thread; True if
+        there was something. A driver waiting for its reply on the discrete clock calls this
+        (rig/transport/serial_link.py): the same bytes through the same pty, without handing
+        the request to this server's thread and the reply back (two thread switches per
+        exchange, each a scheduler slice on a loaded machine).
+
+        Only for an inline server (``inline``: a pty in this process, a discrete clock, and
+        a model that declares ``serves_inline``: pure computation on the simulated world,
+        which cannot hang). Never while a stall is armed or being taken: a stall is this
+        server's thread's, so that a stalled or dead simulator stays a bounded timeout."""
+        if not self.inline or self._stalled or self.faults.stall_armed:
+            return False
+        with self._model_lock:
+            fd = self._master
+            if self._stalled or fd < 0 or not select.select([fd], [], [], 0)[0]:
+                return False
+            data = os.read(fd, 65536)
+            self.bytes_in += len(data)
+            self._feed_locked(data)
+        return True
 
     def _real_s_until(self, t_clock: float) -> float:
         """Real seconds until clock time ``t_clock`` (a discrete clock is pumped on advance)."""

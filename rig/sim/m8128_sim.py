@@ -13,6 +13,8 @@ from rig.sim.world import SimWorld
 
 
 class M8128Sim:
+    serves_inline = True  # pure computation on the simulated world (rig/sim/link.py: SimServer.inline)
+
     def __init__(self, world: SimWorld, *, rate_hz: float = 100.0):
         self.world = world
         self.rate_hz = rate_hz

@@ -62,6 +62,12 @@ class RtuServer(RequestReplyDevice):
         self._buf = b""
         self.crc_errors = 0
 
+    @property
+    def serves_inline(self) -> bool:
+        """Non-blocking (may be served in a waiting driver's thread, rig/sim/link.py) when
+        every register device behind it declares so."""
+        return all(getattr(d, "serves_inline", False) is True for d in self.devices.values())
+
     def feed(self, data: bytes, now_s: float) -> list[bytes]:
         self._buf += data
         replies: list[bytes] = []

@@ -18,6 +18,8 @@ PR0_REGISTERS = range(reg.PR0_MODE, reg.PR0_MODE + reg.PR0_LENGTH)
 
 
 class PrDriveSim:
+    serves_inline = True  # pure computation on the simulated stage (rig/sim/link.py: SimServer.inline)
+
     def __init__(self, stage: SimStage, *, pulses_per_rev: int, travel_per_rev: float):
         self.stage = stage
         self.travel_per_rev = travel_per_rev

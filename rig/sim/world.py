@@ -103,9 +103,10 @@ class SimWorld:
         end = self.true_wrench(t_end)
         start_t, start = self._last_true if self._last_true is not None else (t_end, end)
         self._last_true = (t_end, end)
-        out = np.empty((len(times), 6))
-        for i, t in enumerate(times):
-            w = 1.0 if t_end <= start_t else min(1.0, max(0.0, (t - start_t) / (t_end - start_t)))
-            out[i] = start + (end - start) * w
+        if t_end <= start_t:
+            w = np.ones(len(times))
+        else:
+            w = np.clip((np.asarray(times, dtype=np.float64) - start_t) / (t_end - start_t), 0.0, 1.0)
+        out = start + (end - start) * w[:, None]
         noise = self._rng.normal(0.0, 1.0, (len(times), 6)) * np.asarray(self.spec.gauge_noise)
         return out + np.asarray(self.spec.gauge_offset) + noise

@@ -50,6 +50,8 @@ class ZaberDeviceSim:
 
 
 class ZaberChainSim(RequestReplyDevice):
+    serves_inline = True  # pure computation on the simulated stages (rig/sim/link.py: SimServer.inline)
+
     def __init__(self, clock, devices: dict[int, ZaberDeviceSim]):
         self.clock = clock
         self.devices = dict(sorted(devices.items()))  # broadcast replies come in address order

@@ -206,12 +206,16 @@ class SerialLink:
         return that frame. DeviceTimeout (with what did arrive) when the reply is late."""
         peer = peers.lookup(self.url)
         wait = _PeerWait(self, peer) if peer is not None else _RealTimeWait(self.timeout_s)
+        # An in-process simulator on a discrete clock answers in this thread (rig/sim/link.py).
+        serve_now = peer.serve_now if getattr(peer, "inline", False) is True else None  # type: ignore[union-attr]
         while True:
             end = frame_end(bytes(self._rx))
             if end:
                 frame = bytes(self._rx[:end])
                 del self._rx[:end]
                 return frame
+            if serve_now is not None:
+                serve_now()
             chunk = self._read_some(command, device)
             if chunk:
                 self._rx += chunk
@@ -242,15 +246,53 @@ class SerialLink:
             return data
         return self._read_some("read", None)
 
+    def inline_peer(self) -> bool:
+        """True when the far end is a simulator in this process that serves inline (a pty
+        on a discrete clock, a non-blocking model: rig/sim/link.py ``SimServer.inline``)."""
+        return getattr(peers.lookup(self.url), "inline", False) is True
+
+    def can_wait_readable(self) -> bool:
+        """True when the port has a file descriptor to wait on (``wait_readable``)."""
+        return self.port._raw_fd() is not None
+
+    def wait_readable(self, timeout_s: float) -> bool:
+        """Wait up to ``timeout_s`` real seconds for bytes to read, taking none."""
+        if self._rx:
+            return True
+        fd = self.port._raw_fd()
+        if fd is None:  # closed under us (or a port without one: see can_wait_readable)
+            raise self._fail("wait on", "read", OSError("the port has no file descriptor"), None)
+        try:
+            return bool(retry_eintr(lambda: select.select([fd], [], [], timeout_s)[0]))
+        except (*PORT_ERRORS, ValueError) as exc:
+            raise self._fail("wait on", "read", exc, None) from exc
+
+    def in_flight(self) -> int:
+        """Bytes an in-process simulator has sent that this link has not read yet: on the
+        line, or still inside the kernel's pty (it hands them over asynchronously, later on
+        a loaded machine). 0 on hardware, where nothing can know."""
+        peer = peers.lookup(self.url)
+        if peer is None:
+            return 0
+        return max(0, peer.counters()[1] - self._peer_base[1] - self.port.bytes_read)
+
+    def read_waiting(self) -> bytes:
+        """What has arrived, without waiting (b"" when nothing has)."""
+        return self._take_all("read from", "read", None)
+
     def discard_input(self, *, device: str | None = None) -> bytes:
         """Drop stale bytes (a late reply to an earlier, timed-out command)."""
-        stale = bytes(self._rx)
+        return self._take_all("flush", "discard input", device)
+
+    def _take_all(self, verb: str, what: str, device: str | None) -> bytes:
+        """Everything buffered and waiting in the port, without waiting for more."""
+        data = bytes(self._rx)
         self._rx.clear()
         try:
             waiting = self.port.in_waiting
-            return stale + (self.port.read(waiting) if waiting else b"")
+            return data + (self.port.read(waiting) if waiting else b"")
         except PORT_ERRORS as exc:
-            raise self._fail("flush", "discard input", exc, device) from exc
+            raise self._fail(verb, what, exc, device) from exc
 
     def close(self) -> None:
         try:
