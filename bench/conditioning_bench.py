@@ -33,7 +33,8 @@ def main() -> None:
     ap.add_argument(
         "--conditionings",
         default="plane,embedding,plane+embedding,physics,physics+plane+embedding",
-        help="comma-separated conditionings compared when varying conditioning (default: the five above)",
+        help="comma-separated conditionings compared when varying conditioning, each optionally with :residual "
+        "(target physics_residual; default: the five above)",
     )
     ap.add_argument("--part", default="test", help="the split part evaluated (default test)")
     ap.add_argument("--threads", type=int, default=None, help="torch threads (default: torch's)")
@@ -64,8 +65,14 @@ def main() -> None:
     baseline = None
     choices = args.conditionings.split(",") if args.vary == "conditioning" else PREDICTIONS
     for choice in choices:
-        run = out / choice.replace("+", "_")
-        over = {args.vary: choice}
+        run = out / choice.replace("+", "_").replace(":", "-")
+        # "CONDITIONING:residual" trains on the frame's difference from the physics render (target physics_residual)
+        name, _, residual = choice.partition(":")
+        over = {args.vary: name}
+        if residual:
+            if residual != "residual" or args.vary != "conditioning":
+                raise SystemExit(f"--conditionings: {choice!r}: only CONDITIONING:residual is understood")
+            over["target"] = "physics_residual"
         if args.vary == "conditioning" and args.prediction:
             over["prediction"] = args.prediction
         cfg = preset("tiny", image_size=args.size, **over)

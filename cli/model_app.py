@@ -74,6 +74,13 @@ def train(
             help="Network target: sample (y0), epsilon (the paper's) or v_prediction (default: the preset's, sample)."
         ),
     ] = None,
+    target: Annotated[
+        Optional[str],
+        typer.Option(
+            help="What is denoised: frame (the paper's) or physics_residual (the frame minus the physics render; "
+            "needs physics conditioning). Default: the config's, else frame."
+        ),
+    ] = None,
     steps: Annotated[Optional[int], typer.Option(help="Optimisation steps in all (default 2000).", min=1)] = None,
     batch_size: Annotated[
         Optional[int], typer.Option(help="Images per step, over all GPUs (default 16).", min=1)
@@ -120,7 +127,12 @@ def train(
         model_cfg, train_fields = make_preset(preset or "tiny"), dict(PRESET_TRAINING.get(preset or "tiny", {}))
     model_over = {
         k: v
-        for k, v in (("image_size", image_size), ("conditioning", conditioning), ("prediction", prediction))
+        for k, v in (
+            ("image_size", image_size),
+            ("conditioning", conditioning),
+            ("prediction", prediction),
+            ("target", target),
+        )
         if v is not None
     }
     if conditioning is None and not _names_conditioning(config):
@@ -218,8 +230,9 @@ def generate(
     pose: Annotated[
         str,
         typer.Option(
-            help="x,y (mm),theta (deg) of the object on the sensor, or x,y,z (mm),theta: a physics-conditioned model "
-            "needs z, the depth from the contact point (negative into the gel)."
+            help="x,y (mm),theta (deg) of the object on the sensor, or x,y,z (mm),theta with z the depth from the "
+            "contact point (negative into the gel). A physics-conditioned model given x,y,theta renders at the depth "
+            "where the simulator's contact gives the wrench's Fz, and says which."
         ),
     ] = "0,0,0",
     split: Annotated[
@@ -281,6 +294,9 @@ def generate(
     )
     native = frame.shape[0]
     note = f"the model's own size, {native}x{native}"
+    if model.cfg.uses_physics and len(p) == 3:
+        z = model.physics_pose(_object_name(object_image), p, np.asarray(w))[2]
+        note += f"; physics render at z {z:+.3f} mm, where the contact gives Fz {w[2]:g} N"
     if size is not None and size != native:
         frame = cv2.resize(frame, (size, size), interpolation=cv2.INTER_CUBIC if size > native else cv2.INTER_AREA)
         note = f"{'upsampled' if size > native else 'downsampled'} from the model's {native}x{native}"

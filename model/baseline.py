@@ -1,15 +1,17 @@
 """The lighting-model baseline row: the simulator's own physics render of each test frame.
 
-For a frame it takes what a physics simulator is given (the object and its measured
-pose x, y, z, θ), solves the gel's contact mechanics the simulated rig solves
-(sensor_sim.world_contact) and lights the result with a sensor profile's calibrated
+For a frame it takes what a physics simulator is given (the object, its measured
+pose x, y, z, θ and, for marker sensors, the measured wrench), solves the gel's contact
+mechanics the simulated rig solves (sensor_sim.world_contact) and lights the result with a sensor profile's calibrated
 optics (sensor_sim.optics), with no sensor noise.
 
 The profile: the one given (``evaluate --profile``), else the one the run file records
 (``sensor_profile``, found again by its content hash), else the shipped GelSight Mini
 default. The gel (thickness, modulus) is the profile's; the field of view is the run's
 (frame width × its mm_per_px) when the file has a scale, else the profile's. Each frame is rendered on its own,
-without the friction history of the frames before it, as Taxim or FOTS render one.
+without the friction history of the frames before it, as Taxim or FOTS render one; for marker
+sensors the measured Fx, Fy and Mz stand in for that history (the tangential state that carries
+them, sensor_sim/load_match.py), since the markers' shear is what they show.
 
 Background: the run's own no-contact reference frame for sensors without markers (so
 on real data the row measures the lighting and mechanics, not the sensor's shading);
@@ -94,14 +96,25 @@ class ObjectRender:
         )
         self.renderer = Renderer(spec, geometry, None if spec.has_markers else background, profile=profile)
 
-    def render(self, pose_measured) -> np.ndarray:
-        """BGR uint8 frame, frame_px square, for a pose (x, y, z mm from the contact point, θ deg)."""
+    def render(self, pose_measured, wrench=None) -> np.ndarray:
+        """BGR uint8 frame, frame_px square, for a pose (x, y, z mm from the contact point, θ deg)
+        and, for a marker sensor, the measured wrench (Fx, Fy, Fz N, Mx, My, Mz N·mm): the gel's
+        tangential state is the one that carries the wrench's Fx, Fy and Mz
+        (sensor_sim/load_match.py), which is what moves the markers. Without a wrench, the pose
+        alone: the markers as if the indenter had pressed straight in."""
         from objects.pose import Pose
+        from sensor_sim.load_match import contact_at_load
 
-        self.contact.reset()  # the pose alone: no friction history
+        self.contact.reset()  # no friction history: the load stands in for it
         x, y, z, theta = (float(v) for v in pose_measured)
-        result = self.contact.solve(Pose(x, y, z, theta), self.renderer.needs())
-        return self.renderer.render(result.fields)
+        pose = Pose(x, y, z, theta)
+        needs = self.renderer.needs()
+        if wrench is None or "uxy" not in needs:
+            return self.renderer.render(self.contact.solve(pose, needs).fields)
+        w = np.asarray(wrench, dtype=float).reshape(6)
+        match = contact_at_load(self.contact.solver, pose, (w[0], w[1], w[5]), needs)
+        self.last_match = match
+        return self.renderer.render(match.result.fields)
 
 
 class PhysicsRender(ObjectRender):
@@ -132,19 +145,25 @@ class PhysicsRender(ObjectRender):
 
 
 def render_frames(
-    run_paths: list[str], rows: np.ndarray, poses: np.ndarray, size: int, profile=None
+    run_paths: list[str], rows: np.ndarray, poses: np.ndarray, size: int, profile=None, wrenches=None
 ) -> tuple[list[np.ndarray], float]:
-    """Physics renders of (run, frame) ``rows`` at their poses, resized to ``size`` as the
-    dataset resizes real frames; and the seconds per frame it took. ``profile``: a
-    SensorProfile for every run (default: each run's own, see the module docstring)."""
+    """Physics renders of (run, frame) ``rows`` at their poses (and ``wrenches``, raw N and N·mm:
+    default each frame's recorded one), resized to ``size`` as the dataset resizes real frames;
+    and the seconds per frame it took. ``profile``: a SensorProfile for every run (default: each
+    run's own, see the module docstring)."""
     renderers: dict[int, PhysicsRender] = {}
+    recorded: dict[int, np.ndarray] = {}
     out = []
     t0 = time.perf_counter()
-    for (run, _), pose in zip(rows, poses):
+    for k, ((run, frame), pose) in enumerate(zip(rows, poses)):
         run = int(run)
         if run not in renderers:
             renderers[run] = PhysicsRender(run_paths[run], profile=profile)
-        img = renderers[run].render(pose)
+            if wrenches is None:
+                with h5py.File(run_paths[run], "r", swmr=True) as f:
+                    recorded[run] = f[S.WRENCH][()]
+        wrench = wrenches[k] if wrenches is not None else recorded[run][int(frame)]
+        img = renderers[run].render(pose, wrench)
         if img.shape[0] != size:
             img = cv2.resize(img, (size, size), interpolation=cv2.INTER_AREA)
         out.append(img)

@@ -29,6 +29,10 @@ DEFAULT_CONDITIONING = {
     "white_markers": "physics+plane+embedding",
 }
 PREDICTIONS = ("epsilon", "v_prediction", "sample")
+# What the diffusion denoises: the tactile frame itself (the paper), or its difference from the
+# physics channels' render (``physics_residual``: the model learns what the calibrated simulator
+# gets wrong, and a sample is the render plus that; needs physics conditioning).
+TARGETS = ("frame", "physics_residual")
 
 
 @dataclass(frozen=True)
@@ -45,6 +49,7 @@ class ModelConfig:
     # what the network predicts: y₀ itself ("sample"), ε (the paper's loss) or v = √ᾱ·ε − √(1−ᾱ)·y₀.
     # Measured (docs/model.md): after 1000 CPU steps y₀ gives MSE 5.2, v 63, ε 2086 (noisy frames).
     prediction: str = "sample"
+    target: str = "frame"  # one of TARGETS; physics_residual measured in docs/results/markers128-physics
 
     def __post_init__(self):
         parts = str(self.conditioning).split("+")
@@ -59,6 +64,13 @@ class ModelConfig:
             )
         if self.prediction not in PREDICTIONS:
             raise ValueError(f"prediction must be one of {', '.join(PREDICTIONS)}, got {self.prediction!r}")
+        if self.target not in TARGETS:
+            raise ValueError(f"target must be one of {', '.join(TARGETS)}, got {self.target!r}")
+        if self.target == "physics_residual" and "physics" not in parts:
+            raise ValueError(
+                f"target physics_residual needs physics conditioning (the render it is a residual of); "
+                f"conditioning is {self.conditioning!r}"
+            )
         levels = len(self.block_out_channels)
         if self.image_size % (2 ** (levels - 1)):
             raise ValueError(
@@ -78,6 +90,11 @@ class ModelConfig:
     @property
     def uses_physics(self) -> bool:
         return "physics" in self.conditioning.split("+")
+
+    @property
+    def residual(self) -> bool:
+        """The diffusion denoises the frame's difference from the physics render (``target``)."""
+        return self.target == "physics_residual"
 
     @property
     def condition_channels(self) -> int:

@@ -60,6 +60,8 @@ class Diffusion:
     ) -> torch.Tensor:
         """Mean squared error of the network's target for a batch of clean tactile images in [−1, 1]."""
         b, dev = tactile.shape[0], tactile.device
+        if self.cfg.residual:  # the difference from the physics render (the last three condition channels)
+            tactile = to_residual(tactile, condition)
         t = torch.randint(0, self.cfg.train_timesteps, (b,), device=dev, generator=generator)
         noise = torch.randn(tactile.shape, device=dev, generator=generator)
         a = self._alpha_bar(t).to(tactile.dtype)
@@ -135,4 +137,16 @@ class Diffusion:
         timesteps = spaced_timesteps(self.cfg.train_timesteps, steps, SPACING[sampler])
         x = torch.randn((condition.shape[0], 3, *condition.shape[2:]), device=condition.device, generator=generator)
         denoise = self.denoiser(net, condition, wrench, guidance=guidance)
-        return SAMPLERS[sampler](denoise, x, timesteps, self.alpha_bar, generator=generator).clamp(-1.0, 1.0)
+        out = SAMPLERS[sampler](denoise, x, timesteps, self.alpha_bar, generator=generator).clamp(-1.0, 1.0)
+        return from_residual(out, condition) if self.cfg.residual else out
+
+
+def to_residual(tactile: torch.Tensor, condition: torch.Tensor) -> torch.Tensor:
+    """Frames in [−1, 1] → their difference from the physics render (the condition's last three
+    channels), halved into [−1, 1]."""
+    return (tactile - condition[:, -3:]) / 2
+
+
+def from_residual(residual: torch.Tensor, condition: torch.Tensor) -> torch.Tensor:
+    """``to_residual``'s inverse, clamped to the image range."""
+    return (condition[:, -3:] + 2 * residual).clamp(-1.0, 1.0)

@@ -48,6 +48,7 @@ class Evaluation:
     references: list[np.ndarray] = field(default_factory=list)  # each example's no-contact frame
     part: str = "test"
     objects: list[str] = field(default_factory=list)  # the objects whose frames the part holds
+    unseen_objects: bool = False  # none of them is in the training part (a --by object split's test part)
     sweeps: list = field(default_factory=list)  # force_sweep.PoseSweep, one per (pose, component)
     sweep_summary: list[dict] = field(default_factory=list)  # force_sweep.summarise of each
     sweep_ranges: dict[str, tuple[float, float]] = field(default_factory=dict)

@@ -130,6 +130,8 @@ def evaluate_part(
     ex = spread(len(items), n_examples)
     ev = Evaluation([], None, "", markers, part=part)
     ev.objects = sorted({str(data.manifest["runs"][int(r)].get("object", "?")) for r in np.unique(data.rows[:, 0])})
+    trained_on = set(data.manifest.get("objects", {}).get("train", []))
+    ev.unseen_objects = part != "train" and bool(trained_on) and not trained_on & set(ev.objects)
     ev.examples["object at pose"] = [uint8_tensor_to_image(items[i]["condition"]) for i in ex]
     ev.examples["real"] = [real[i] for i in ex]
     ev.references = _references(data, [items[i]["run"] for i in ex], model.cfg.image_size)
@@ -212,13 +214,19 @@ def _force_sweep(ev, model, split_dir, data, items, opts: SweepOptions, seed, ma
             it = dict(base)
             norm = normalise_wrench(w, model.wrench_mean, model.wrench_std).astype(np.float32)
             it["wrench"] = torch.from_numpy(norm)
+            if model.cfg.uses_physics:  # the physics channels under the swept load, not the frame's own
+                it.pop("physics", None)
+                it["wrench_raw"] = np.asarray(w, dtype=float)
+                # Fz is a depth to the physics render: a sweep that changes it renders where the
+                # simulator's contact gives it (as generate does for a pose without z)
+                it["depth_from_fz"] = bool(w[2] != run(poses[p][0]).wrench[poses[p][1]][2])
             out += list(model.generate_items([it], steps=opts.steps, sampler=opts.sampler, seed=seed))
         return out
 
     renderers: dict = {}
     unavailable: list[str] = []
 
-    def physics(r: int, pose: np.ndarray) -> np.ndarray | None:
+    def physics(r: int, pose: np.ndarray, wrench: np.ndarray) -> np.ndarray | None:
         from model.baseline import BaselineUnavailable, PhysicsRender
         from sensor_sim.profile import load_profile
 
@@ -231,7 +239,7 @@ def _force_sweep(ev, model, split_dir, data, items, opts: SweepOptions, seed, ma
                 log(f"{ev.part}: force sweep without the physics render: {exc}")
         if renderers[r] is None:
             return None
-        img = renderers[r].render(pose)
+        img = renderers[r].render(pose, wrench)
         size = model.cfg.image_size
         return img if img.shape[0] == size else cv2.resize(img, (size, size), interpolation=cv2.INTER_AREA)
 
@@ -254,6 +262,12 @@ def _force_sweep(ev, model, split_dir, data, items, opts: SweepOptions, seed, ma
         f"generated with {opts.sampler}, {opts.steps} steps, seed {seed} (the same initial noise at every point); "
         f"{opts.points} values per component; contact: change from the run's no-contact frame above "
         f"{F.THRESHOLD:g} (0–255) after a Gaussian blur of σ {blur:g} px"
+        + (
+            "; the physics channels rendered under each swept wrench (for Fz at the depth where the simulator's "
+            "contact gives it: a physics model sees force through the pose as well as the wrench)"
+            if model.cfg.uses_physics
+            else ""
+        )
         + "".join(f"; no physics render: {why}" for why in dict.fromkeys(unavailable))
     )
 
@@ -300,13 +314,22 @@ def _context(model: TrainedModel, data: TactileDataset, part: str, frames: int) 
         "image size": f"{cfg.image_size}×{cfg.image_size} px (the model's own; frames resized to it)",
         "model": f"{cfg.network}, widths {list(cfg.block_out_channels)}, {cfg.layers_per_block} resnet block(s) "
         f"per level, predicts {cfg.prediction}",
-        "conditioning": cfg.conditioning,
+        "conditioning": cfg.conditioning
+        + (
+            "; denoises the frame's difference from the physics render (target physics_residual)"
+            if cfg.residual
+            else ""
+        ),
         "split": f"by {m.get('by', '?')}, ratios {m.get('ratios', '?')}, seed {m.get('seed', '?')}; objects in the "
         f"split: {', '.join(objects)}; "
         + (
             f"held out of training (part test_object): {', '.join(m['held_out_objects'])}"
             if m.get("held_out_objects")
-            else "no object held out of training"
+            else (
+                "objects split between the parts: the test part's objects are never seen in training"
+                if m.get("by") == "object"
+                else "no object held out of training"
+            )
         )
         + f"; trained on: {', '.join(m.get('objects', {}).get('train', [])) or '?'}",
         "machine": f"{describe()}, device {device}, torch "

@@ -24,6 +24,13 @@ PART_TEXT = {
 }
 
 
+def part_text(ev: Evaluation) -> str:
+    """What the part holds, in words: a part none of whose objects was trained on says so."""
+    if ev.unseen_objects:
+        return PART_TEXT["test_object"]
+    return PART_TEXT.get(ev.part, "a part of the split")
+
+
 def _fmt_row(name: str, r: Row) -> str:
     if r.marker_px is None:
         mk = "—" if not r.marker_failures else f"— ({r.marker_failures} frames without markers)"
@@ -57,8 +64,7 @@ def write_report(evs: list[Evaluation], out: str | Path, *, title: str) -> Path:
     lines.append(
         "- **parts evaluated**: "
         + "; ".join(
-            f"`{ev.part}` ({PART_TEXT.get(ev.part, 'a part of the split')}: {', '.join(ev.objects)}), "
-            f"{ev.rows[0].images if ev.rows else 0} frames"
+            f"`{ev.part}` ({part_text(ev)}: {', '.join(ev.objects)}), {ev.rows[0].images if ev.rows else 0} frames"
             for ev in evs
         )
     )
@@ -89,7 +95,7 @@ def _part_section(ev: Evaluation, out: Path, suffix: str) -> list[str]:
     n = ev.rows[0].images if ev.rows else 0
     lines = [
         "",
-        f"## Part `{ev.part}`: {PART_TEXT.get(ev.part, 'a part of the split')} ({', '.join(ev.objects)})",
+        f"## Part `{ev.part}`: {part_text(ev)} ({', '.join(ev.objects)})",
         "",
         f"{n} frames. Metrics as docs/reference.md#metrics defines them (0–255 scale, all channels, "
         "whole image); marker error: mean distance per matched marker of the central 18×18, in px at the "
@@ -153,9 +159,9 @@ def _sweep_section(ev: Evaluation, out: Path, suffix: str, figure) -> list[str]:
         "components held at the pose frame's own; "
         f"{ev.sweep_note}. Measured on each generated frame and on its reference — the real frame of the same run "
         "at the same x, y, θ (within 0.25 mm, 1°) nearest in the swept component with the other swept "
-        "components within half a training standard deviation, else, for Fz only, the physics render at the "
-        "depth the run's own Fz↔z relation gives (the render has no friction history, so it is no reference "
-        "for Fx, Fy, Mz): the contact's area, centroid and shading (mean |change| inside it). ρ: Spearman's "
+        "components within half a training standard deviation, else the physics render (for Fz at the "
+        "depth the run's own Fz↔z relation gives; for Fx, Fy, Mz with the gel carrying the swept load): the "
+        "contact's area, centroid and shading (mean |change| inside it). ρ: Spearman's "
         "rank correlation of the area with the force (for Fx and Fy also of the centroid's x or y: "
         "image axes, whose signs against the gauge's depend on how the sensor is mounted); a pose is "
         f"monotonic when |ρ| ≥ {MONOTONIC_RHO}, in the reference's direction where it has one (Fz: growing). Sign "

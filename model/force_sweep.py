@@ -7,11 +7,12 @@ against the run's no-contact frame (``measure_contact``): the contact's area (pi
 differing beyond a threshold), its centroid and its shading (the mean intensity change
 inside it). The same measures are taken on a reference at each force: the real frame of
 the same run nearest in that component at the same x, y, θ with the other components
-close (``match_real_frames``), else, for Fz only, the physics render at the depth the
-run's own Fz↔z relation gives (``depth_for_force``); the render has no friction history,
-so it is no reference for shear or twist. ``summarise`` gives Spearman's ρ of each
-measure against the force, its least-squares slope, the sign consistency of successive
-steps, and the error against the reference.
+close (``match_real_frames``), else the physics render: for Fz at the depth the run's own
+Fz↔z relation gives (``depth_for_force``), for Fx, Fy and Mz at the pose with the gel's
+tangential state carrying the swept load (sensor_sim/load_match.py; it moves a marker
+sensor's markers and leaves a sensor without markers unchanged, as the simulator does).
+``summarise`` gives Spearman's ρ of each measure against the force, its least-squares
+slope, the sign consistency of successive steps, and the error against the reference.
 
 numpy, OpenCV and h5py only: the generator is a callable, so every measure here is
 tested on synthetic frames without a network.
@@ -433,7 +434,8 @@ def _resize(img: np.ndarray, size: int) -> np.ndarray:
     return img if img.shape[0] == size else cv2.resize(img, (size, size), interpolation=cv2.INTER_AREA)
 
 
-Physics = Callable[[int, np.ndarray], "np.ndarray | None"]  # (run, pose x, y, z, θ) → BGR frame, None: none
+# (run, pose x, y, z, θ, wrench N and N·mm) → BGR frame, None: none
+Physics = Callable[[int, np.ndarray, np.ndarray], "np.ndarray | None"]
 
 
 def run_force_sweep(
@@ -451,8 +453,8 @@ def run_force_sweep(
     clock: Callable[[], float] = time.perf_counter,
 ) -> list[PoseSweep]:
     """Every component of ``ranges`` swept at every pose (``generate(pose index, raw wrenches)``),
-    each point beside its reference: a matching real frame, else for Fz the ``physics`` render at
-    the depth the run's own Fz↔z relation gives, else none."""
+    each point beside its reference: a matching real frame, else the ``physics`` render (for Fz at
+    the depth the run's own Fz↔z relation gives), else none."""
     eta = Eta(len(poses) * len(ranges), clock)
     out: list[PoseSweep] = []
     for p, (r, f) in enumerate(poses):
@@ -471,9 +473,18 @@ def run_force_sweep(
                 if m is not None:
                     refs.append((run.frame(m), f"real frame {m}"))
                     continue
-                depth = depth_for_force(run.wrench[:, 2], run.pose[:, 2], float(v)) if name == "Fz" else None
-                rendered = physics(r, np.array([x, y, depth, theta])) if depth is not None and physics else None
-                refs.append((rendered, f"physics render at z {depth:+.2f} mm") if rendered is not None else (None, ""))
+                load = w.copy()
+                load[COMPONENTS[name]] = v
+                if name == "Fz":
+                    depth = depth_for_force(run.wrench[:, 2], run.pose[:, 2], float(v))
+                    rendered = (
+                        physics(r, np.array([x, y, depth, theta]), load) if depth is not None and physics else None
+                    )
+                    source = f"physics render at z {depth:+.2f} mm" if depth is not None else ""
+                else:
+                    rendered = physics(r, np.array([x, y, z, theta]), load) if physics else None
+                    source = f"physics render at {name} {v:+.2f}"
+                refs.append((rendered, source) if rendered is not None else (None, ""))
             out.append(
                 sweep_pose(
                     generate,

@@ -22,18 +22,36 @@ from model.registry import build_network
 
 def add_physics(items: list[dict], size: int) -> None:
     """Give each item without one its ``physics`` field: the physics render of its run frame at its
-    measured pose (what the training cache holds, model/physics_condition.py), rendered now from
-    its ``run_path``. The item keeps it, so a second sampler setting does not render it again."""
+    measured pose and wrench (what the training cache holds, model/physics_condition.py), rendered
+    now from its ``run_path``: the wrench is the item's ``wrench_raw`` (N, N·mm) where it has one
+    (a force sweep's), else the run's recorded one at its frame; an item marked ``depth_from_fz``
+    is rendered at the depth where the simulator's contact gives that wrench's Fz (as `generate`
+    renders a pose given without z). The item keeps the render, so a second sampler setting does
+    not render it again."""
+    import h5py
+
     from model.baseline import PhysicsRender
 
     renderers: dict[str, PhysicsRender] = {}
+    recorded: dict[str, np.ndarray] = {}
     for it in items:
         if "physics" in it:
             continue
         path = it["run_path"]
         if path not in renderers:
             renderers[path] = PhysicsRender(path, background="simulator")
-        it["physics"] = image_to_tensor(resize(renderers[path].render(it["pose"].numpy()), size))
+            with h5py.File(path, "r", swmr=True) as f:
+                recorded[path] = f[S.WRENCH][()]
+        raw = it.get("wrench_raw")
+        wrench = np.asarray(raw, dtype=float) if raw is not None else recorded[path][int(it["frame"])]
+        pose = it["pose"].numpy().astype(float)
+        if it.get("depth_from_fz"):  # a force sweep's Fz: the depth where the simulator's contact gives it
+            from sensor_sim.load_match import depth_for_force
+
+            x, y, _, theta = pose
+            solver = renderers[path].contact.solver
+            pose = np.array([x, y, -depth_for_force(solver, x, y, theta, max(0.0, float(wrench[2]))), theta])
+        it["physics"] = image_to_tensor(resize(renderers[path].render(pose, wrench), size))
 
 
 def generate_items(
@@ -124,7 +142,7 @@ class TrainedModel:
                     f"this model is conditioned on the physics render ({self.cfg.conditioning}): give a library "
                     "object or a run file of one as the object, not an image"
                 )
-            cond = torch.cat([cond, image_to_tensor(self.physics_image(object_name, pose))])
+            cond = torch.cat([cond, image_to_tensor(self.physics_image(object_name, pose, wrench))])
         cond = scale_images(cond[None])
         w = torch.from_numpy(normalise_wrench(wrench, self.wrench_mean, self.wrench_std).astype(np.float32))[None]
         g = torch.Generator(device=self.device).manual_seed(seed)
@@ -146,16 +164,35 @@ class TrainedModel:
         x, y, _, theta = _pose4(pose, need_z=False)
         return condition_image(object_bgr, x, y, theta, self.mm_per_px, self.frame_px, self.cfg.image_size)
 
-    def physics_image(self, object_name: str, pose) -> np.ndarray:
+    def physics_image(self, object_name: str, pose, wrench=None) -> np.ndarray:
         """The physics channels' image (BGR uint8, S×S) for a library object at a pose (x, y, z mm,
-        θ deg): what training's cache holds for a run frame of that object at that measured pose."""
+        θ deg; or x, y, θ with the depth from the wrench's Fz, ``physics_pose``) under a wrench (N,
+        N·mm; a marker sensor's markers follow its Fx, Fy, Mz): what training's cache holds for a
+        run frame of that object at that measured pose and wrench."""
+        render = self._physics_renderer(object_name)
+        return resize(render.render(self.physics_pose(object_name, pose, wrench), wrench), self.cfg.image_size)
+
+    def physics_pose(self, object_name: str, pose, wrench=None) -> tuple[float, float, float, float]:
+        """(x, y, z, θ) for the physics render: z as given; for a pose of x, y, θ and a wrench, the
+        depth at which the object there presses with the wrench's Fz (the simulator's own
+        force-depth relation through the checkpoint's sensor profile)."""
+        from sensor_sim.load_match import depth_for_force
+
+        values = [float(v) for v in pose]
+        if len(values) != 3 or wrench is None:
+            return _pose4(values, need_z=True)
+        x, y, _, theta = _pose4(values, need_z=False)
+        solver = self._physics_renderer(object_name).contact.solver
+        return x, y, -depth_for_force(solver, x, y, theta, float(np.asarray(wrench, dtype=float)[2])), theta
+
+    def _physics_renderer(self, object_name: str):
         if self.physics is None:
             raise ValueError(f"this model ({self.cfg.conditioning}) has no physics conditioning")
         if self._renderers is None:
             self._renderers = {}
         if object_name not in self._renderers:
             self._renderers[object_name] = self.physics.renderer(object_name, where="--object")
-        return resize(self._renderers[object_name].render(_pose4(pose, need_z=True)), self.cfg.image_size)
+        return self._renderers[object_name]
 
     def generate_items(self, items: list[dict], **kwargs):
         """``generate_items`` with this model's EMA weights."""
@@ -223,7 +260,7 @@ def _pose4(pose, *, need_z: bool) -> tuple[float, float, float, float]:
         if need_z:
             raise ValueError(
                 f"pose {values}: a physics-conditioned model needs the depth too: x,y,z,theta "
-                "(z in mm from the contact point, negative into the gel)"
+                "(z in mm from the contact point, negative into the gel), or a wrench whose Fz gives it"
             )
         values.insert(2, 0.0)
     x, y, z, theta = values

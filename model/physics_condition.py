@@ -3,7 +3,8 @@
 A ``physics`` model (``ModelConfig.uses_physics``) sees, beside the object image, the physics
 render of the frame (model/baseline.py's ``ObjectRender``: the split's object at the measured
 pose x, y, z, θ through the run's sensor profile, over the simulator's own background, no
-noise, no friction history), resized to the model's size like the frames. Rendering takes tens
+noise; for marker sensors the gel's tangential state is the one that carries the measured
+Fx, Fy and Mz, so the markers move as the load says), resized to the model's size like the frames. Rendering takes tens
 of milliseconds a frame, so a split part's renders are made once per size and kept next to the
 split (``physics_cache``); ``TactileDataset(physics=...)`` serves them as the ``physics`` item
 field. Inference renders the same image from what the checkpoint records (``PhysicsSpec``).
@@ -30,7 +31,7 @@ from dataset.split import load_split
 from model.baseline import BaselineUnavailable, ObjectRender
 
 CACHE_DIR = "physics"  # inside the split directory
-CACHE_VERSION = 1  # bump when the render or the cache layout changes: every cache is rebuilt
+CACHE_VERSION = 2  # bump when the render or the cache layout changes: every cache is rebuilt
 
 
 class PhysicsUnavailable(BaselineUnavailable):
@@ -155,6 +156,7 @@ def physics_cache(
     images = np.zeros((len(rows), size, size, 3), np.uint8)
     renderers: dict[int, ObjectRender] = {}
     poses: dict[int, np.ndarray] = {}
+    wrenches: dict[int, np.ndarray] = {}
     step = max(1, len(rows) // 10)
     log(f"physics render of {len(rows)} {part} frames at {size} px (once; cached in {path.parent})")
     for k, (run, frame) in enumerate(rows):
@@ -164,8 +166,9 @@ def physics_cache(
             with h5py.File(run_path, "r", swmr=True) as f:
                 obj = str(f.attrs.get(S.ATTR_OBJECT, ""))
                 poses[run] = f[S.POSE_MEASURED][()]
+                wrenches[run] = f[S.WRENCH][()]
             renderers[run] = spec.renderer(obj, where=run_path)
-        images[k] = resize(renderers[run].render(poses[run][int(frame)]), size)
+        images[k] = resize(renderers[run].render(poses[run][int(frame)], wrenches[run][int(frame)]), size)
         if (k + 1) % step == 0 or k + 1 == len(rows):
             log(f"  physics render: {k + 1}/{len(rows)} frames")
     # Each file replaced whole, images first: a reader (another process of a multi-GPU run, which

@@ -20,13 +20,19 @@ CENTRAL = 18
 def find_markers(
     image: np.ndarray, *, block: int = 21, offset: float = 12.0, min_area: float = 3.0, max_area_frac: float = 0.01
 ) -> np.ndarray:
-    """(n, 2) marker centroids (col, row) in pixels: dark blobs on the gel."""
+    """(n, 2) marker centroids (col, row) in pixels: dark blobs on the gel.
+
+    Every outer boundary counts, also one inside another blob's hole: a flat punch's dark rim
+    is one large ring around the contact (rejected by its size), and the markers inside it
+    are markers still (only outermost contours would lose them all)."""
     gray = cv2.cvtColor(image, cv2.COLOR_BGR2GRAY) if image.ndim == 3 else image
     mask = cv2.adaptiveThreshold(gray, 255, cv2.ADAPTIVE_THRESH_GAUSSIAN_C, cv2.THRESH_BINARY_INV, block, offset)
-    contours, _ = cv2.findContours(mask, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
+    contours, hierarchy = cv2.findContours(mask, cv2.RETR_CCOMP, cv2.CHAIN_APPROX_NONE)
     max_area = max_area_frac * gray.size
     out = []
-    for c in contours:
+    for c, h in zip(contours, hierarchy[0] if hierarchy is not None else []):
+        if h[3] >= 0:  # a hole's boundary, not a blob's
+            continue
         m = cv2.moments(c)
         if min_area <= m["m00"] <= max_area:
             out.append((m["m10"] / m["m00"], m["m01"] / m["m00"]))

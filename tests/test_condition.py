@@ -66,18 +66,21 @@ def test_a_non_square_object_image_is_refused(tmp_path):
         model.condition(np.zeros((40, 60, 3), np.uint8), (0, 0, 0))
 
 
-@pytest.mark.parametrize("frame_px,size", [(64, 16), (16, 16)])
-def test_generate_physics_channels_equal_training_ones(tmp_path, frame_px, size):
+@pytest.mark.parametrize("frame_px,size,kind", [(64, 16, "rgb"), (16, 16, "rgb"), (64, 32, "rgb_markers")])
+def test_generate_physics_channels_equal_training_ones(tmp_path, frame_px, size, kind):
     """A physics model's extra channels: the training cache's render of a run frame, the one
-    `generate` renders from the checkpoint's record for the object at that pose, and the one
-    evaluate's plain items get, are the same image."""
+    `generate` renders from the checkpoint's record for the object at that pose and wrench, and
+    the one evaluate's plain items get, are the same image."""
     from dataclasses import replace
 
+    import h5py
+
+    from acquisition import schema as S
     from dataset.torch_dataset import TactileDataset, uint8_tensor_to_image
     from model.inference import add_physics
     from model.physics_condition import physics_cache, split_spec
 
-    split = make_split_dir(tmp_path, n=24, size=frame_px)
+    split = make_split_dir(tmp_path, n=24, size=frame_px, kind=kind)
     data = TactileDataset(split, "train", size=size, physics=physics_cache(split, "train", size))
     plain = TactileDataset(split, "train", size=size)
     model = _model(size, data.mm_per_px[0], frame_px)
@@ -85,7 +88,10 @@ def test_generate_physics_channels_equal_training_ones(tmp_path, frame_px, size)
     model.physics = split_spec(split)
     items = [plain[i] for i in range(len(plain))]
     add_physics(items, size)
+    with h5py.File(data.runs[0], "r") as f:
+        recorded = f[S.WRENCH][()]
     for i in range(len(data)):
         cached = uint8_tensor_to_image(data[i]["physics"])
-        assert np.array_equal(model.physics_image("sphere10mm", data[i]["pose"].numpy()), cached)
+        wrench = recorded[int(data[i]["frame"])]
+        assert np.array_equal(model.physics_image("sphere10mm", data[i]["pose"].numpy(), wrench), cached)
         assert np.array_equal(uint8_tensor_to_image(items[i]["physics"]), cached)

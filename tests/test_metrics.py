@@ -63,6 +63,22 @@ def test_marker_error_measures_a_known_displacement():
     assert moved_px > marker_error(still, pressed).per_marker_px
 
 
+def test_markers_inside_a_dark_ring_are_found():
+    """A flat punch's dark rim is one ring-shaped blob around the contact: too large to be a
+    marker, and the markers inside it are still markers (taking only outermost contours lost them)."""
+    img = np.full((128, 128), 200, np.uint8)
+    centres = [(8 + 12 * i, 8 + 12 * j) for i in range(10) for j in range(10)]
+    for x, y in centres:
+        cv2.circle(img, (x, y), 2, 40, -1)
+    cv2.rectangle(img, (30, 30), (90, 90), 40, 3)  # the rim, through a column of markers
+    found = find_markers(img)
+    inside = [(x, y) for x, y in centres if 34 < x < 86 and 34 < y < 86]
+    assert len(inside) == 16
+    for x, y in inside:
+        assert np.min(np.hypot(found[:, 0] - x, found[:, 1] - y)) < 0.5
+    assert not np.any((np.abs(found[:, 0] - 60) < 4) & (np.abs(found[:, 1] - 60) < 4))  # no ring centroid
+
+
 def test_marker_flow_and_its_figure(tmp_path):
     from model.evaluate import Evaluation, Row
     from model.figures import marker_flow_figure

@@ -94,8 +94,8 @@ def test_presets_and_config_errors():
         ModelConfig(conditioning="telepathy")
 
 
-def make_split_dir(tmp_path, n=24, size=16):
-    """A small real split: run files via RunWriter, split 8:2."""
+def make_split_dir(tmp_path, n=24, size=16, kind="rgb"):
+    """A small real split: run files via RunWriter, split 8:2 (sensor ``kind`` recorded)."""
     import numpy as np
 
     from acquisition.run_file import RunHeader, RunWriter
@@ -104,7 +104,7 @@ def make_split_dir(tmp_path, n=24, size=16):
     from protocols.plan import PHASES
 
     rng = np.random.default_rng(0)
-    header = RunHeader("t", "", "", "sphere10mm", "", "rgb", 14 / size, 1.0, n, (0, 0, 0, 0), PHASES)
+    header = RunHeader("t", "", "", "sphere10mm", "", kind, 14 / size, 1.0, n, (0, 0, 0, 0), PHASES)
     w = RunWriter.create(
         tmp_path / "r.h5",
         header,

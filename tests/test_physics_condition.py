@@ -4,10 +4,13 @@ from __future__ import annotations
 
 import json
 
+import h5py
 import numpy as np
 import pytest
 
+from acquisition import schema as S
 from model.config import ModelConfig
+from objects.pose import Pose
 from tests.test_model_core import SMALL, make_split_dir
 
 PHYS = ModelConfig(**{**SMALL.__dict__, "conditioning": "physics+plane"})
@@ -64,8 +67,20 @@ def test_physics_model_records_its_conditioning_and_generates(physics_run):
     a = model.generate(obj, [0, 0, 2, 0, 0, 0], (0.2, 0.0, -0.8, 5.0), steps=2, seed=1, object_name="sphere10mm")
     b = model.generate(obj, [0, 0, 2, 0, 0, 0], (0.2, 0.0, -0.8, 5.0), steps=2, seed=1, object_name="sphere10mm")
     assert a.shape == (16, 16, 3) and np.array_equal(a, b)
+    # x, y, θ only: the depth where the simulator's contact gives the wrench's Fz
+    x, y, z, theta = model.physics_pose("sphere10mm", (0.2, 0.0, 5.0), [0, 0, 2, 0, 0, 0])
+    assert (x, y, theta) == (0.2, 0.0, 5.0) and -3.0 < z < 0
+    solver = model._physics_renderer("sphere10mm").contact.solver
+    assert solver.solve(Pose(x, y, z, theta)).wrench[2] == pytest.approx(2.0, abs=0.01)
+    c = model.generate(obj, [0, 0, 2, 0, 0, 0], (0.2, 0.0, 5.0), steps=2, seed=1, object_name="sphere10mm")
+    d = model.generate(obj, [0, 0, 2, 0, 0, 0], (0.2, 0.0, z, 5.0), steps=2, seed=1, object_name="sphere10mm")
+    assert np.array_equal(c, d)
     with pytest.raises(ValueError, match="needs the depth too"):
-        model.generate(obj, [0, 0, 2, 0, 0, 0], (0.2, 0.0, 5.0), steps=2, object_name="sphere10mm")
+        model.physics_pose("sphere10mm", (0.2, 0.0, 5.0))
+    with pytest.raises(ValueError, match="beyond what"):
+        model.generate(obj, [0, 0, 1e5, 0, 0, 0], (0.2, 0.0, 5.0), steps=2, object_name="sphere10mm")
+    with pytest.raises(ValueError, match="Fz must be a finite force"):
+        model.generate(obj, [0, 0, -2, 0, 0, 0], (0.2, 0.0, 5.0), steps=2, object_name="sphere10mm")
     with pytest.raises(ValueError, match="library object"):
         model.generate(obj, [0, 0, 2, 0, 0, 0], (0.2, 0.0, -0.8, 5.0), steps=2)
     with pytest.raises(ValueError, match="not one the simulator knows"):
@@ -96,10 +111,14 @@ def test_generate_command_takes_a_library_object_at_x_y_z_theta(physics_run, tmp
     args = ["--checkpoint", str(run), "--wrench", "0,0,2,0,0,0", "--steps", "2", "--out", str(tmp_path / "f.png")]
     r = CliRunner().invoke(generate_app, [*args, "--object", "sphere10mm", "--pose", "0.2,0,-0.8,5"])
     assert r.exit_code == 0 and (tmp_path / "f.png").exists(), r.output
-    # a pose without z, or a picture instead of an object the simulator knows: one line each
+    # a pose without z: the depth from Fz, said; a force the gel cannot give, or a picture instead of an
+    # object the simulator knows: one line each
     r = CliRunner().invoke(generate_app, [*args, "--object", "sphere10mm", "--pose", "0.2,0,5"])
+    assert r.exit_code == 0 and "physics render at z -" in r.output and "Fz 2 N" in r.output, r.output
+    bad = [a if a != "0,0,2,0,0,0" else "0,0,-2,0,0,0" for a in args]
+    r = CliRunner().invoke(generate_app, [*bad, "--object", "sphere10mm", "--pose", "0.2,0,5"])
     errors = [line for line in r.output.splitlines() if line.startswith("error:")]
-    assert r.exit_code == 1 and len(errors) == 1 and "x,y,z,theta" in errors[0] and "Traceback" not in r.output
+    assert r.exit_code == 1 and len(errors) == 1 and "Fz must be" in errors[0] and "Traceback" not in r.output
     r = CliRunner().invoke(generate_app, [*args, "--object", str(tmp_path / "f.png"), "--pose", "0,0,-0.8,0"])
     assert r.exit_code == 1 and "library object name" in r.output
 
@@ -140,9 +159,11 @@ def test_the_cache_is_the_render_and_is_rebuilt_when_stale(tmp_path):
     assert any("physics render of 19 train frames" in line for line in lines)
     data = TactileDataset(split, "train", size=8, physics=path)
     render = PhysicsRender(str(data.runs[0]), background="simulator")
+    with h5py.File(data.runs[0], "r") as f:
+        recorded = f[S.WRENCH][()]
     for i in (0, 7, 18):
         item = data[i]
-        expected = resize(render.render(item["pose"].numpy()), 8)
+        expected = resize(render.render(item["pose"].numpy(), recorded[int(item["frame"])]), 8)
         assert np.array_equal(uint8_tensor_to_image(item["physics"]), expected)
     # the frames press harder as i grows (z = -1 throughout, x moves): not all renders are equal
     assert len({data[i]["physics"].numpy().tobytes() for i in range(len(data))}) > 1
@@ -208,3 +229,65 @@ def test_train_picks_the_sensor_kinds_default_and_keeps_every_choice(tmp_path):
     r = CliRunner().invoke(app, [*common, "--out", str(tmp_path / "b"), "--conditioning", "plane"])
     assert r.exit_code == 0, r.output
     assert json.loads((tmp_path / "b" / "checkpoint" / "state.json").read_text())["model"]["conditioning"] == "plane"
+
+
+def test_physics_residual_target_denoises_the_difference_from_the_render():
+    """With target physics_residual, an oracle that knows the frame's difference from the physics
+    channels has zero loss, every sampler gives back the frame, and a network that answers zero
+    (nothing to correct) samples the physics render itself; the target needs physics conditioning."""
+    import torch
+
+    from model.diffusion import Diffusion, from_residual, to_residual
+
+    with pytest.raises(ValueError, match="physics_residual needs physics conditioning"):
+        ModelConfig(**{**SMALL.__dict__, "conditioning": "plane", "target": "physics_residual"})
+    with pytest.raises(ValueError, match="target must be one of"):
+        ModelConfig(**{**SMALL.__dict__, "target": "image"})
+    cfg = ModelConfig(**{**SMALL.__dict__, "conditioning": "physics+plane", "target": "physics_residual"})
+    diff = Diffusion(cfg)
+    g = torch.Generator().manual_seed(0)
+    clean = torch.rand(2, 3, 16, 16, generator=g) * 1.6 - 0.8
+    render = (clean + 0.2 * torch.randn(2, 3, 16, 16, generator=g)).clamp(-1, 1)
+    cond = torch.cat([torch.zeros_like(clean), render], dim=1)  # object image, then the physics channels
+    wrench = torch.zeros(2, 6)
+    residual = to_residual(clean, cond)
+    assert torch.allclose(from_residual(residual, cond), clean, atol=1e-6)
+
+    def oracle(noisy, t, condition, w):  # prediction "sample": the clean residual
+        return residual
+
+    assert diff.loss(oracle, clean, cond, wrench, generator=torch.Generator().manual_seed(0)).item() < 1e-9
+    for sampler in ("ddim", "dpm"):
+        out = diff.sample(oracle, cond, wrench, steps=10, sampler=sampler, generator=torch.Generator().manual_seed(1))
+        assert torch.allclose(out, clean, atol=2e-3), sampler
+    zero = diff.sample(lambda x, t, c, w: torch.zeros_like(x), cond, wrench, steps=5, generator=torch.Generator())
+    assert torch.allclose(zero, render, atol=1e-6)
+    # the frame target (the paper's) on the same oracle is not at zero: the target is what changed
+    plain = Diffusion(ModelConfig(**{**SMALL.__dict__, "conditioning": "physics+plane"}))
+    assert plain.loss(oracle, clean, cond, wrench, generator=torch.Generator().manual_seed(0)).item() > 1e-2
+
+
+def test_a_swept_fz_is_rendered_at_the_depth_that_gives_it(tmp_path):
+    """evaluate's force sweep marks items whose Fz it changed: their physics channels are rendered
+    at the depth where the simulator's contact gives that Fz, so a harder press is a deeper render."""
+    from dataset.torch_dataset import TactileDataset, uint8_tensor_to_image
+    from model.baseline import PhysicsRender
+    from model.inference import add_physics
+    from model.physics_condition import resize
+    from sensor_sim.load_match import depth_for_force
+
+    split = make_split_dir(tmp_path, n=24, size=32)
+    data = TactileDataset(split, "train", size=32)
+    render = PhysicsRender(str(data.runs[0]), background="simulator")
+    x, y, _, theta = (float(v) for v in data[3]["pose"].numpy())
+    images = []
+    for fz in (1.0, 6.0):
+        it = data[3]
+        it["wrench_raw"] = np.array([0.0, 0.0, fz, 0.0, 0.0, 0.0])
+        it["depth_from_fz"] = True
+        add_physics([it], 32)
+        depth = depth_for_force(render.contact.solver, x, y, theta, fz)
+        expected = resize(render.render(np.array([x, y, -depth, theta]), it["wrench_raw"]), 32)
+        assert np.array_equal(uint8_tensor_to_image(it["physics"]), expected)
+        images.append(expected.astype(float))
+    assert np.abs(images[1] - images[0]).mean() > 0.5  # the harder press shows
