@@ -294,12 +294,12 @@ def generate(
     )
     native = frame.shape[0]
     note = f"the model's own size, {native}x{native}"
-    if model.cfg.uses_physics and len(p) == 3:
-        z = model.physics_pose(_object_name(object_image), p, np.asarray(w))[2]
-        note += f"; physics render at z {z:+.3f} mm, where the contact gives Fz {w[2]:g} N"
     if size is not None and size != native:
         frame = cv2.resize(frame, (size, size), interpolation=cv2.INTER_CUBIC if size > native else cv2.INTER_AREA)
         note = f"{'upsampled' if size > native else 'downsampled'} from the model's {native}x{native}"
+    if model.cfg.uses_physics and len(p) == 3:
+        z = model.physics_pose(_object_name(object_image), p, np.asarray(w))[2]
+        note += f"; physics render at z {z:+.3f} mm, where the contact gives Fz {w[2]:g} N"
     _write_png(out, frame)
     typer.echo(f"{out}: {frame.shape[1]}x{frame.shape[0]} ({note})")
 

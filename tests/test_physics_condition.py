@@ -113,8 +113,9 @@ def test_generate_command_takes_a_library_object_at_x_y_z_theta(physics_run, tmp
     assert r.exit_code == 0 and (tmp_path / "f.png").exists(), r.output
     # a pose without z: the depth from Fz, said; a force the gel cannot give, or a picture instead of an
     # object the simulator knows: one line each
-    r = CliRunner().invoke(generate_app, [*args, "--object", "sphere10mm", "--pose", "0.2,0,5"])
+    r = CliRunner().invoke(generate_app, [*args, "--object", "sphere10mm", "--pose", "0.2,0,5", "--size", "32"])
     assert r.exit_code == 0 and "physics render at z -" in r.output and "Fz 2 N" in r.output, r.output
+    assert "upsampled from the model's 16x16" in r.output
     bad = [a if a != "0,0,2,0,0,0" else "0,0,-2,0,0,0" for a in args]
     r = CliRunner().invoke(generate_app, [*bad, "--object", "sphere10mm", "--pose", "0.2,0,5"])
     errors = [line for line in r.output.splitlines() if line.startswith("error:")]
