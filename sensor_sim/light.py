@@ -6,8 +6,7 @@ that turns mechanics fields into frames with them is ``sensor_sim.optics``.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import cast
+from dataclasses import dataclass, field
 
 import cv2
 import numpy as np
@@ -22,12 +21,19 @@ KNEE_LOW, KNEE_HIGH, FLOOR, CEIL = 16.0, 236.0, 1.0, 254.0
 
 def soft_bound(img: np.ndarray) -> np.ndarray:
     """Compress values beyond the knees smoothly into [FLOOR, CEIL] (C¹, monotone)."""
-    out = img.copy()
+    return soft_bound_inplace(img.copy())
+
+
+def soft_bound_inplace(img: np.ndarray) -> np.ndarray:
+    """``soft_bound`` on ``img`` itself (returned): the same numbers, no copy, and no
+    indexing at all when nothing lies beyond the knees (most frames)."""
     hi = img > KNEE_HIGH
-    out[hi] = KNEE_HIGH + (CEIL - KNEE_HIGH) * np.tanh((img[hi] - KNEE_HIGH) / (CEIL - KNEE_HIGH))
-    lo = img < KNEE_LOW
-    out[lo] = KNEE_LOW - (KNEE_LOW - FLOOR) * np.tanh((KNEE_LOW - img[lo]) / (KNEE_LOW - FLOOR))
-    return out
+    if hi.any():
+        img[hi] = KNEE_HIGH + (CEIL - KNEE_HIGH) * np.tanh((img[hi] - KNEE_HIGH) / (CEIL - KNEE_HIGH))
+    lo = img < KNEE_LOW  # values raised above KNEE_HIGH stay above it: the same cells as before
+    if lo.any():
+        img[lo] = KNEE_LOW - (KNEE_LOW - FLOOR) * np.tanh((KNEE_LOW - img[lo]) / (KNEE_LOW - FLOOR))
+    return img
 
 
 def normal_lookup(gx: np.ndarray, gy: np.ndarray, bins: int) -> tuple[np.ndarray, np.ndarray]:
@@ -50,14 +56,54 @@ def normal_lookup(gx: np.ndarray, gy: np.ndarray, bins: int) -> tuple[np.ndarray
 
 def _corner_cells(gx: np.ndarray, gy: np.ndarray, bins: int) -> tuple[np.ndarray, list[np.ndarray]]:
     """``normal_lookup`` unstacked: the first corner's flat index and the four weights, each
-    shaped like ``gx``: the same numbers without building the (..., 4) arrays."""
-    inv = 1.0 / np.sqrt(1.0 + gx * gx + gy * gy)
-    u = (1.0 - gx * inv) * (0.5 * (bins - 1))
-    v = (1.0 - gy * inv) * (0.5 * (bins - 1))
-    i0 = np.clip(np.floor(u).astype(np.int32), 0, bins - 2)
-    j0 = np.clip(np.floor(v).astype(np.int32), 0, bins - 2)
-    fu, fv = (u - i0).astype(np.float32), (v - j0).astype(np.float32)
-    return j0 * bins + i0, [(1 - fu) * (1 - fv), fu * (1 - fv), (1 - fu) * fv, fu * fv]
+    shaped like ``gx``: the same numbers without building the (..., 4) arrays.
+
+    The same operations in the same order, in place where a temporary is not needed. For
+    float32 slopes the fraction ``u - i0`` is taken in float32: exact (Sterbenz: i0 <= u <= 2 i0
+    for i0 >= 1, and u - 0 = u), so it equals the float64 difference rounded to float32."""
+    s = gx * gx
+    s += 1.0
+    s += gy * gy  # 1 + gx² + gy², summed left to right as written in normal_lookup
+    np.sqrt(s, out=s)
+    inv = np.divide(1.0, s, out=s)
+    half = 0.5 * (bins - 1)
+    u = gx * inv
+    np.subtract(1.0, u, out=u)
+    u *= half
+    v = np.multiply(gy, inv, out=inv)
+    np.subtract(1.0, v, out=v)
+    v *= half
+    # floor, then clipped to the table: u > -1 always (|gx| / |(gx, gy, 1)| <= 1 to a few ulps),
+    # so truncation toward zero, clipped, is the same cell (NaN: both casts give INT_MIN, clipped to 0)
+    i0 = u.astype(np.int32)
+    np.minimum(np.maximum(i0, 0, out=i0), bins - 2, out=i0)
+    j0 = v.astype(np.int32)
+    np.minimum(np.maximum(j0, 0, out=j0), bins - 2, out=j0)
+    u -= i0.astype(u.dtype)
+    v -= j0.astype(v.dtype)
+    fu, fv = u.astype(np.float32, copy=False), v.astype(np.float32, copy=False)
+    a, b = 1 - fu, 1 - fv
+    k = j0 * bins
+    k += i0
+    return k, [a * b, fu * b, a * fv, np.multiply(fu, fv, out=fu)]
+
+
+def _gradient(z: np.ndarray, step: np.float32) -> tuple[np.ndarray, np.ndarray]:
+    """``np.gradient(z, step)`` of a 2-D float32 array, (d/drow, d/dcol): the same operations
+    (central differences over ``2. * step`` inside, one-sided over ``step`` at the edges)
+    written straight into the results, without np.gradient's general-case bookkeeping."""
+    if z.ndim != 2 or min(z.shape) < 2:
+        gy, gx = np.gradient(z, step)
+        return gy, gx
+    two_step = 2.0 * step
+    gy, gx = np.empty_like(z), np.empty_like(z)
+    np.divide(np.subtract(z[2:], z[:-2], out=gy[1:-1]), two_step, out=gy[1:-1])
+    np.divide(np.subtract(z[1], z[0], out=gy[0]), step, out=gy[0])
+    np.divide(np.subtract(z[-1], z[-2], out=gy[-1]), step, out=gy[-1])
+    np.divide(np.subtract(z[:, 2:], z[:, :-2], out=gx[:, 1:-1]), two_step, out=gx[:, 1:-1])
+    np.divide(np.subtract(z[:, 1], z[:, 0], out=gx[:, 0]), step, out=gx[:, 0])
+    np.divide(np.subtract(z[:, -1], z[:, -2], out=gx[:, -1]), step, out=gx[:, -1])
+    return gy, gx
 
 
 @dataclass(frozen=True)
@@ -78,6 +124,7 @@ class LightModel:
     blur_mm: float
     shading: str = "multiplicative"
     reference_bgr: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    _cells: np.ndarray = field(init=False, repr=False, compare=False)  # derived from table_bgr
 
     def __post_init__(self):
         table = np.asarray(self.table_bgr, dtype=np.float32)
@@ -86,6 +133,13 @@ class LightModel:
         if not np.all(np.isfinite(table)) or np.abs(table).max() > 255:
             raise ValueError("table_bgr entries must be finite colour changes within ±255 grey levels")
         object.__setattr__(self, "table_bgr", table)
+        # Per channel and corner, each cell's corner value: row 4 * channel + corner (corners
+        # at flat offsets 0, 1, bins, bins + 1), so one gather fetches all twelve.
+        bins, flat = table.shape[1], table.reshape(3, -1)
+        cells = np.zeros((12, bins * bins), np.float32)
+        for corner, offset in enumerate((0, 1, bins, bins + 1)):
+            cells[corner::4, : bins * bins - offset] = flat[:, offset:]
+        object.__setattr__(self, "_cells", cells)
         if self.shading not in SHADINGS:
             raise ValueError(f"shading must be one of {', '.join(SHADINGS)}, got {self.shading!r}")
         if not (np.isfinite(self.blur_mm) and 0 <= self.blur_mm <= 5):
@@ -108,11 +162,7 @@ class LightModel:
 
     def slopes(self, z_mm: np.ndarray, mm_per_px: float) -> tuple[np.ndarray, np.ndarray]:
         """Blurred slopes (gx, gy) of the surface height ``z_mm`` (image axes)."""
-        gx: np.ndarray
-        gy: np.ndarray
-        # z_mm is (H, W); numpy's stubs only type np.gradient's result as a pair for a 2-D array type
-        z = cast("np.ndarray[tuple[int, int], np.dtype[np.float32]]", z_mm.astype(np.float32))
-        gy, gx = np.gradient(z, np.float32(mm_per_px))
+        gy, gx = _gradient(z_mm.astype(np.float32, copy=False), np.float32(mm_per_px))
         blur_px = self.blur_mm / mm_per_px
         if blur_px > 0:
             gx = cv2.GaussianBlur(gx, (0, 0), blur_px)
@@ -121,24 +171,36 @@ class LightModel:
 
     def change(self, gx: np.ndarray, gy: np.ndarray, background: np.ndarray) -> np.ndarray:
         """(H, W, 3) colour change for slopes (gx, gy) over ``background`` (H, W, 3)."""
-        # Per channel, one contiguous gather per corner, the corners summed in the order a
-        # (..., 4) sum takes them: the same float32 bits as stacking the corners and summing
-        # (tested), ~5x faster (most of a simulated frame's render).
-        k, w = _corner_cells(gx, gy, self.bins)
-        corners = [k, k + 1, k + self.bins, k + self.bins + 1]
-        channels = []
-        for table in self.table_bgr.reshape(3, -1):
-            acc = np.take(table, corners[0])
-            acc *= w[0]
-            for index, weight in zip(corners[1:], w[1:]):
-                corner = np.take(table, index)
-                corner *= weight
-                acc += corner
-            channels.append(acc)
-        delta = np.stack(channels, axis=-1)
+        delta = np.ascontiguousarray(np.moveaxis(self.change_planar(gx, gy), 0, -1))
         if self.shading == "multiplicative":
             delta *= background / np.asarray(self.reference_bgr, dtype=np.float32)
         return delta
+
+    def shade_scale(self, background: np.ndarray) -> np.ndarray | None:
+        """(3, H, W) factor ``change_planar`` applies for ``background`` (H, W, 3); None when
+        additive. Constant per background: a renderer computes it once."""
+        if self.shading != "multiplicative":
+            return None
+        return np.ascontiguousarray(np.moveaxis(background / np.asarray(self.reference_bgr, dtype=np.float32), -1, 0))
+
+    def change_planar(self, gx: np.ndarray, gy: np.ndarray, scale: np.ndarray | None = None) -> np.ndarray:
+        """``change`` as (3, H, W) planes, times ``scale`` (``shade_scale``) when given.
+
+        Per channel, the four corners weighted and summed in the order a (..., 4) sum takes
+        them: the same float32 bits as stacking the corners and summing (tested). One gather
+        fetches every channel's corners; each plane is contiguous."""
+        k, w = _corner_cells(gx, gy, self.bins)
+        corners = self._cells.take(k, axis=1)
+        out = np.empty((3, *k.shape), np.float32)
+        for ch in range(3):
+            acc = np.multiply(corners[4 * ch], w[0], out=out[ch])
+            for j in range(1, 4):
+                corner = corners[4 * ch + j]
+                corner *= w[j]
+                acc += corner
+            if scale is not None:
+                acc *= scale[ch]
+        return out
 
 
 @dataclass(frozen=True)

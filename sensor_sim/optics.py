@@ -9,6 +9,13 @@
 Markers move with the tangential surface displacement of the gel. The profile's
 background (the real GelSight Mini no-contact frame by default, or one you supply),
 optical blur, vignetting for synthetic backgrounds and sensor noise complete the frame.
+
+The frame is built in (3, H, W) planes (contiguous per channel) from per-renderer
+constants (background, shading factor, noise bank), with the same float32 operations in
+the same order as the straightforward (H, W, 3) formulas, so the same uint8 frames
+(tests/test_render_exact.py keeps that formulation as its reference). The last press
+image and the last marker shading are kept: a slow protocol asks for the same contact,
+and the same markers to 1/16 px, in consecutive frames.
 """
 
 from __future__ import annotations
@@ -18,8 +25,10 @@ import numpy as np
 from scipy.ndimage import map_coordinates
 
 from sensor_sim.contact import SensorGeometry
-from sensor_sim.light import LightModel, OpticsSpec, soft_bound
+from sensor_sim.light import LightModel, OpticsSpec, soft_bound_inplace
 from sensor_sim.profile import default_profile
+
+MARKER_SHIFT = 4  # markers drawn to sub-pixel precision 1/2**4 px
 
 
 class Renderer:
@@ -56,9 +65,12 @@ class Renderer:
         # White light: a tilted surface sends less light to the camera, with the same
         # small-tilt gain as the coloured response's mean magnitude, and never below black.
         self.white_darkening = min(0.9, self.light.slope_gain() / 200.0)
+        self._background_planes = np.ascontiguousarray(np.moveaxis(self.background, -1, 0))
+        self._shade_scale = self.light.shade_scale(self.background)  # (3, H, W) or None
         self._rng = np.random.default_rng(seed)
         # Sensor noise from a bank of precomputed fields, shifted at random per frame:
         # statistically the same per pixel, ~10x cheaper than fresh Gaussian draws.
+        self._noise_planes: np.ndarray | None = None
         self._noise = (
             self._rng.normal(0.0, self.spec.noise_std, (4, h, w, 3)).astype(np.float32)
             if self.spec.noise_std > 0
@@ -70,6 +82,19 @@ class Renderer:
         mx = (np.arange(n_x) - (n_x - 1) / 2) * pitch
         my = (np.arange(n_y) - (n_y - 1) / 2) * pitch
         self.marker_rest_mm = np.stack(np.meshgrid(mx, my), axis=-1).reshape(-1, 2)  # (x, y), +y up
+        # The last inputs and what they gave: (uz, press planes), (centres in 1/16 px, shading).
+        self._press_cache: tuple[np.ndarray, np.ndarray] | None = None
+        self._marker_cache: tuple[np.ndarray, np.ndarray] | None = None
+
+    @property
+    def _noise(self) -> np.ndarray | None:
+        """The noise bank (4, H, W, 3) float32, or None for no noise (tests set it)."""
+        return self._noise_bank
+
+    @_noise.setter
+    def _noise(self, bank: np.ndarray | None) -> None:
+        self._noise_bank = bank
+        self._noise_planes = None if bank is None else np.ascontiguousarray(np.moveaxis(bank, -1, 1))
 
     @classmethod
     def from_profile(cls, profile, kind: str = "rgb", seed: int = 0) -> "Renderer":
@@ -87,11 +112,32 @@ class Renderer:
 
     def slope_change(self, uz_mm: np.ndarray) -> np.ndarray:
         """(H, W, 3) colour change for the surface sink ``uz_mm`` (mechanics grid)."""
-        gx, gy = self.light.slopes(-self._on_image(uz_mm), self.mm_per_px)
+        return np.ascontiguousarray(np.moveaxis(self._change_planes(uz_mm), 0, -1))
+
+    def _change_planes(self, uz_mm: np.ndarray) -> np.ndarray:
+        """``slope_change`` as (3, H, W) planes."""
+        z = self._on_image(uz_mm)
+        gx, gy = self.light.slopes(np.negative(z, out=z), self.mm_per_px)  # the sink as a height
         if self.spec.kind == "white_markers":
-            tilt = np.sqrt(gx * gx + gy * gy) / np.sqrt(1.0 + gx * gx + gy * gy)  # sin of the tilt, in [0, 1)
-            return -self.white_darkening * tilt[..., None] * self.background
-        return self.light.change(gx, gy, self.background)
+            gx2, gy2 = gx * gx, gy * gy
+            den = np.add(1.0, gx2, out=gx)
+            den += gy2
+            gx2 += gy2
+            tilt = np.sqrt(gx2, out=gx2)
+            tilt /= np.sqrt(den, out=den)  # sin of the tilt, in [0, 1)
+            tilt = -self.white_darkening * tilt
+            return np.multiply(tilt, self._background_planes)
+        return self.light.change_planar(gx, gy, self._shade_scale)
+
+    def _press_planes(self, uz_mm: np.ndarray) -> np.ndarray:
+        """(3, H, W) background plus the colour change for ``uz_mm``; the last one is kept."""
+        cached = self._press_cache
+        if cached is not None and np.array_equal(cached[0], uz_mm):
+            return cached[1]
+        planes = self._change_planes(uz_mm)
+        planes += self._background_planes
+        self._press_cache = (np.array(uz_mm, copy=True), planes)
+        return planes
 
     def marker_positions_px(self, ux_mm: np.ndarray | None, uy_mm: np.ndarray | None) -> np.ndarray:
         """(n, 2) marker centres (col, row) in pixels, displaced with the gel surface."""
@@ -110,27 +156,49 @@ class Renderer:
         return np.stack([col, row], axis=-1)
 
     def _marker_mask(self, centres_px: np.ndarray) -> np.ndarray:
+        """(H, W) float32 coverage of the markers at ``centres_px``, blurred."""
+        return self._marker_mask_fixed(self._fixed_point(centres_px))
+
+    def _fixed_point(self, centres_px: np.ndarray) -> np.ndarray:
+        return np.rint(centres_px * (1 << MARKER_SHIFT)).astype(np.int64)  # round half to even, as round()
+
+    def _marker_mask_fixed(self, centres_fixed: np.ndarray) -> np.ndarray:
         h, w = self.spec.height_px, self.spec.width_px
-        shift = 4  # sub-pixel precision: 1/16 px
         mask = np.zeros((h, w), np.float32)
-        radius = int(round(self.spec.marker_radius_mm / self.mm_per_px * (1 << shift)))
-        for c, r in centres_px:
-            cv2.circle(
-                mask, (int(round(c * (1 << shift))), int(round(r * (1 << shift)))), radius, 1.0, -1, cv2.LINE_AA, shift
-            )
+        radius = int(round(self.spec.marker_radius_mm / self.mm_per_px * (1 << MARKER_SHIFT)))
+        for c, r in centres_fixed.tolist():
+            cv2.circle(mask, (c, r), radius, 1.0, -1, cv2.LINE_AA, MARKER_SHIFT)
         return cv2.GaussianBlur(mask, (0, 0), 0.6)
+
+    def _marker_shading(self, centres_px: np.ndarray) -> np.ndarray:
+        """(H, W) factor the markers at ``centres_px`` multiply the frame by; the last is kept."""
+        fixed = self._fixed_point(centres_px)
+        cached = self._marker_cache
+        if cached is not None and np.array_equal(cached[0], fixed):
+            return cached[1]
+        shading = 1.0 - self.spec.marker_darkness * self._marker_mask_fixed(fixed)
+        self._marker_cache = (fixed, shading)
+        return shading
 
     def render(self, fields: dict[str, np.ndarray]) -> np.ndarray:
         """BGR uint8 frame from the mechanics fields ("uz"; "ux", "uy" for markers)."""
-        img = self.background.copy()
+        h, w = self.spec.height_px, self.spec.width_px
         uz = fields.get("uz")
-        if uz is not None and np.any(uz):
-            img += self.slope_change(uz)
+        base = self._press_planes(uz) if uz is not None and np.any(uz) else self._background_planes
+        img = np.empty((3, h, w), np.float32)
+        src = base
         if self.spec.has_markers:
             centres = self.marker_positions_px(fields.get("ux"), fields.get("uy"))
-            img *= 1.0 - self.spec.marker_darkness * self._marker_mask(centres)[..., None]
-        if self._noise is not None:
+            src = np.multiply(base, self._marker_shading(centres), out=img)
+        if self._noise is not None and self._noise_planes is not None:
             k = int(self._rng.integers(len(self._noise)))
-            dy, dx = (int(v) for v in self._rng.integers(0, img.shape[:2]))
-            img += np.roll(self._noise[k], (dy, dx), axis=(0, 1))
-        return np.rint(soft_bound(img)).astype(np.uint8)
+            dy, dx = (int(v) for v in self._rng.integers(0, (h, w)))
+            noise = self._noise_planes[k]  # added shifted by (dy, dx), wrapping: np.roll's sum, without the copy
+            for rows, noise_rows in ((slice(dy, h), slice(0, h - dy)), (slice(0, dy), slice(h - dy, h))):
+                for cols, noise_cols in ((slice(dx, w), slice(0, w - dx)), (slice(0, dx), slice(w - dx, w))):
+                    np.add(src[:, rows, cols], noise[:, noise_rows, noise_cols], out=img[:, rows, cols])
+        elif src is not img:
+            np.copyto(img, src)
+        np.rint(soft_bound_inplace(img), out=img)
+        frame = img.astype(np.uint8)
+        return cv2.merge((frame[0], frame[1], frame[2]))
