@@ -136,7 +136,9 @@ def train(
         if v is not None
     }
     if conditioning is None and not _names_conditioning(config):
-        model_over["conditioning"] = _default_conditioning(data)
+        model_over["conditioning"], best_target = _default_conditioning(data)
+        if target is None and not _names_key(config, "target"):
+            model_over["target"] = best_target
     if model_over:
         model_cfg = dataclasses.replace(model_cfg, **model_over)
     given = {
@@ -158,7 +160,9 @@ def train(
         say(f"resumed at step {trainer.step}")
     say(
         f"model: {model_cfg.network}, {model_cfg.image_size} px, widths {list(model_cfg.block_out_channels)}, "
-        f"{model_cfg.conditioning}; {len(trainer.data)} training frames; device {trainer.device}"
+        f"{model_cfg.conditioning}"
+        + ("; target physics_residual" if model_cfg.residual else "")
+        + f"; {len(trainer.data)} training frames; device {trainer.device}"
         + (f" x {trainer.acc.num_processes} processes" if trainer.acc.num_processes > 1 else "")
     )
     trainer.train()
@@ -167,33 +171,40 @@ def train(
 
 def _names_conditioning(config: Path | None) -> bool:
     """Whether a model TOML sets [model] conditioning (then it wins over the per-sensor default)."""
+    return _names_key(config, "conditioning")
+
+
+def _names_key(config: Path | None, key: str) -> bool:
+    """Whether a model TOML sets [model] ``key``."""
     import tomllib
 
     if config is None:
         return False
     try:
-        return "conditioning" in tomllib.loads(config.read_text()).get("model", {})
+        return key in tomllib.loads(config.read_text()).get("model", {})
     except (OSError, tomllib.TOMLDecodeError, AttributeError):
         return False  # load_model_file reports the bad file in one line
 
 
-def _default_conditioning(split: Path) -> str:
-    """The measured best conditioning for the split's sensor kind (model/config.py); plane+embedding,
-    said in a line, where that is physics and the simulator cannot render the split's runs."""
+def _default_conditioning(split: Path) -> tuple[str, str]:
+    """The measured best conditioning and target for the split's sensor kind (model/config.py);
+    plane+embedding and the frame, said in a line, where the best is physics and the simulator
+    cannot render the split's runs."""
     from dataset.split import load_split
-    from model.config import ModelConfig, default_conditioning
+    from model.config import ModelConfig, default_conditioning, default_target
     from model.physics_condition import PhysicsUnavailable, split_spec
 
     manifest, _ = load_split(split)
     kinds = {str(r.get("sensor", "")) for r in manifest["runs"]}
-    best = default_conditioning(kinds.pop() if len(kinds) == 1 else "")
+    kind = kinds.pop() if len(kinds) == 1 else ""
+    best = default_conditioning(kind)
     if ModelConfig(conditioning=best).uses_physics:
         try:
             split_spec(split)
         except PhysicsUnavailable as exc:
             typer.echo(f"conditioning plane+embedding, not the default {best}: {exc}")
-            return "plane+embedding"
-    return best
+            return "plane+embedding", "frame"
+    return best, default_target(kind, best)
 
 
 generate_app = typer.Typer(add_completion=False)

@@ -313,7 +313,7 @@ def _context(model: TrainedModel, data: TactileDataset, part: str, frames: int) 
     return {
         "image size": f"{cfg.image_size}×{cfg.image_size} px (the model's own; frames resized to it)",
         "model": f"{cfg.network}, widths {list(cfg.block_out_channels)}, {cfg.layers_per_block} resnet block(s) "
-        f"per level, predicts {cfg.prediction}",
+        f"per level, predicts {cfg.prediction}; trained {model.trained or 'for an unrecorded number of steps'}",
         "conditioning": cfg.conditioning
         + (
             "; denoises the frame's difference from the physics render (target physics_residual)"

@@ -93,6 +93,7 @@ class TrainedModel:
     device: torch.device
     physics: PhysicsSpec | None = None  # what renders the physics channels (physics conditioning only)
     _renderers: dict | None = None  # object name → its ObjectRender, made on first use
+    trained: str = ""  # how far it was trained, in words (from the checkpoint; reports state it)
 
     @classmethod
     def load(cls, run_dir: str | Path, device: str = "cpu") -> "TrainedModel":
@@ -115,6 +116,7 @@ class TrainedModel:
             frame_px,
             dev,
             physics,
+            trained=_trained(meta),
         )
 
     def generate(
@@ -249,6 +251,18 @@ class TrainedModel:
                 if k % batch_size == 0 or k == len(items):
                     log(f"{k}/{len(items)} frames")
         return len(items)
+
+
+def _trained(meta: dict) -> str:
+    """ "N steps × batch B, lr L" from a checkpoint's state (what it has of it)."""
+    raw = meta.get("train")
+    train: dict = raw if isinstance(raw, dict) else {}
+    words = [f"{meta.get('step')} steps"]
+    if isinstance(train.get("batch_size"), int):
+        words[0] += f" × batch {train['batch_size']}"
+    if isinstance(train.get("lr"), (int, float)):
+        words.append(f"lr {train['lr']:g}")
+    return ", ".join(words)
 
 
 def _pose4(pose, *, need_z: bool) -> tuple[float, float, float, float]:

@@ -228,6 +228,7 @@ def test_the_report_states_what_was_evaluated_and_labels_its_examples(tmp_path):
     for key in ("image size", "model", "conditioning", "split", "machine"):
         assert f"- **{key}**: " in text, key
     assert "- **image size**: 16×16 px" in text and "by frame, ratios 8:2" in text
+    assert "; trained 2 steps × batch " in text  # how far the model was trained
     row = next(line for line in text.splitlines() if line.startswith("| this model (ddim, 4 steps) |"))
     per_image, per_nfe = (float(cell) for cell in row.strip("|").split("|")[-2:])
     assert per_nfe == pytest.approx(per_image / 4, rel=0.01)

@@ -219,7 +219,7 @@ def test_train_picks_the_sensor_kinds_default_and_keeps_every_choice(tmp_path):
     from typer.testing import CliRunner
 
     from cli.model_app import app
-    from model.config import DEFAULT_CONDITIONING
+    from model.config import DEFAULT_CONDITIONING, DEFAULT_TARGET
 
     split = make_split_dir(tmp_path)
     common = ["--data", str(split), "--image-size", "16", "--steps", "1", "--batch-size", "4", "--sample-every", "0"]
@@ -227,9 +227,24 @@ def test_train_picks_the_sensor_kinds_default_and_keeps_every_choice(tmp_path):
     assert r.exit_code == 0, r.output
     meta = json.loads((tmp_path / "a" / "checkpoint" / "state.json").read_text())
     assert meta["model"]["conditioning"] == DEFAULT_CONDITIONING["rgb"]
+    assert meta["model"]["target"] == "frame"  # rgb: the residual was not measured
     r = CliRunner().invoke(app, [*common, "--out", str(tmp_path / "b"), "--conditioning", "plane"])
     assert r.exit_code == 0, r.output
     assert json.loads((tmp_path / "b" / "checkpoint" / "state.json").read_text())["model"]["conditioning"] == "plane"
+    # a marker sensor: its conditioning and the residual target by default; a given target wins
+    (tmp_path / "m").mkdir()
+    markers = make_split_dir(tmp_path / "m", size=32, kind="rgb_markers")
+    mcommon = [*common[:1], str(markers), *common[2:]]
+    r = CliRunner().invoke(app, [*mcommon, "--out", str(tmp_path / "c")])
+    assert r.exit_code == 0 and "target physics_residual" in r.output, r.output
+    model = json.loads((tmp_path / "c" / "checkpoint" / "state.json").read_text())["model"]
+    assert (model["conditioning"], model["target"]) == (
+        DEFAULT_CONDITIONING["rgb_markers"],
+        DEFAULT_TARGET["rgb_markers"],
+    )
+    r = CliRunner().invoke(app, [*mcommon, "--out", str(tmp_path / "d"), "--target", "frame"])
+    assert r.exit_code == 0, r.output
+    assert json.loads((tmp_path / "d" / "checkpoint" / "state.json").read_text())["model"]["target"] == "frame"
 
 
 def test_physics_residual_target_denoises_the_difference_from_the_render():
