@@ -5,7 +5,7 @@ import json
 import numpy as np
 import pytest
 
-from tests.test_model_core import SMALL
+from tests.test_model_core import SMALL, write_run
 
 SIZE = 16
 
@@ -13,37 +13,14 @@ SIZE = 16
 def press_run(path, obj, n=30, seed=0):
     """A small run of a library object: a press at the centre (z deeper, Fz larger, every third frame
     back at the same depths), random frames; enough to split, train on and sweep."""
-    from acquisition.run_file import RunHeader, RunWriter
-    from objects.indenters import get_indenter
-    from protocols.plan import PHASES
-
     rng = np.random.default_rng(seed)
-    header = RunHeader("t", "", "", obj, "", "rgb", 14 / SIZE, 1.0, n, (0, 0, 0, 0), PHASES)
-    w = RunWriter.create(
-        path,
-        header,
-        (SIZE, SIZE, 3),
-        get_indenter(obj).object_image(SIZE, 14 / SIZE),
-        np.full((SIZE, SIZE, 3), 128, np.uint8),
-    )
+    rows = []
     for i in range(n):
         depth = 0.05 * (i % 10)
-        w.append(
-            rng.integers(0, 256, (SIZE, SIZE, 3), dtype=np.uint8),
-            wrench=np.array([0.1 * rng.normal(), 0.1 * rng.normal(), 0.3 + 4 * depth, 0, 0, 0.01 * rng.normal()]),
-            pose_commanded=np.zeros(4),
-            pose_measured=np.array([0.0, 0.0, -depth, 0.0]),
-            t_frame_s=float(i),
-            t_capture_s=float(i),
-            wrench_skew_s=0.0,
-            capture_index=i,
-            step_index=0,
-            phase_index=1,
-            level=1,
-        )
-    w.set_status("complete")
-    w.close()
-    return path
+        frame = rng.integers(0, 256, (SIZE, SIZE, 3), dtype=np.uint8)
+        wrench = np.array([0.1 * rng.normal(), 0.1 * rng.normal(), 0.3 + 4 * depth, 0, 0, 0.01 * rng.normal()])
+        rows.append((frame, wrench, np.zeros(4), np.array([0.0, 0.0, -depth, 0.0])))
+    return write_run(path, obj, rows, reference=np.full((SIZE, SIZE, 3), 128, np.uint8))
 
 
 @pytest.fixture

@@ -94,30 +94,33 @@ def test_presets_and_config_errors():
         ModelConfig(conditioning="telepathy")
 
 
-def make_split_dir(tmp_path, n=24, size=16, kind="rgb"):
-    """A small real split: run files via RunWriter, split 8:2 (sensor ``kind`` recorded)."""
+def write_run(path, obj, rows, *, kind="rgb", reference=None):
+    """A complete run file of library object ``obj`` written through RunWriter, one frame per
+    row of ``rows``: (frame, wrench, pose_commanded, pose_measured); square frames at 14 mm
+    across, background ``reference`` (default black)."""
     import numpy as np
 
     from acquisition.run_file import RunHeader, RunWriter
-    from dataset.split import make_split
     from objects.indenters import get_indenter
     from protocols.plan import PHASES
 
-    rng = np.random.default_rng(0)
-    header = RunHeader("t", "", "", "sphere10mm", "", kind, 14 / size, 1.0, n, (0, 0, 0, 0), PHASES)
+    rows = list(rows)
+    shape = rows[0][0].shape
+    size = shape[0]
+    header = RunHeader("t", "", "", obj, "", kind, 14 / size, 1.0, len(rows), (0, 0, 0, 0), PHASES)
     w = RunWriter.create(
-        tmp_path / "r.h5",
+        path,
         header,
-        (size, size, 3),
-        get_indenter("sphere10mm").object_image(size, 14 / size),
-        np.zeros((size, size, 3), np.uint8),
+        shape,
+        get_indenter(obj).object_image(size, 14 / size),
+        np.zeros(shape, np.uint8) if reference is None else reference,
     )
-    for i in range(n):
+    for i, (frame, wrench, commanded, measured) in enumerate(rows):
         w.append(
-            rng.integers(0, 256, (size, size, 3), dtype=np.uint8),
-            wrench=rng.normal(size=6),
-            pose_commanded=np.zeros(4),
-            pose_measured=np.array([0.1 * i, 0, -1, 0]),
+            frame,
+            wrench=wrench,
+            pose_commanded=commanded,
+            pose_measured=measured,
             t_frame_s=float(i),
             t_capture_s=float(i),
             wrench_skew_s=0.0,
@@ -128,6 +131,26 @@ def make_split_dir(tmp_path, n=24, size=16, kind="rgb"):
         )
     w.set_status("complete")
     w.close()
+    return path
+
+
+def make_split_dir(tmp_path, n=24, size=16, kind="rgb"):
+    """A small real split: run files via RunWriter, split 8:2 (sensor ``kind`` recorded)."""
+    import numpy as np
+
+    from dataset.split import make_split
+
+    rng = np.random.default_rng(0)
+    rows = (
+        (
+            rng.integers(0, 256, (size, size, 3), dtype=np.uint8),
+            rng.normal(size=6),
+            np.zeros(4),
+            np.array([0.1 * i, 0, -1, 0]),
+        )
+        for i in range(n)
+    )
+    write_run(tmp_path / "r.h5", "sphere10mm", rows, kind=kind)
     make_split([tmp_path / "r.h5"], "8:2", tmp_path / "split")
     return tmp_path / "split"
 
@@ -259,31 +282,7 @@ def test_physics_render_reproduces_a_simulated_frame(tmp_path):
 def _one_frame_run(tmp_path, frame, reference, pose):
     import numpy as np
 
-    from acquisition.run_file import RunHeader, RunWriter
-    from objects.indenters import get_indenter
-    from protocols.plan import PHASES
-
-    size = frame.shape[0]
-    header = RunHeader("t", "", "", "sphere10mm", "", "rgb", 14 / size, 1.0, 1, (0, 0, 0, 0), PHASES)
-    w = RunWriter.create(
-        tmp_path / "one.h5", header, frame.shape, get_indenter("sphere10mm").object_image(size, 14 / size), reference
-    )
-    w.append(
-        frame,
-        wrench=np.zeros(6),
-        pose_commanded=pose,
-        pose_measured=pose,
-        t_frame_s=0.0,
-        t_capture_s=0.0,
-        wrench_skew_s=0.0,
-        capture_index=0,
-        step_index=0,
-        phase_index=1,
-        level=1,
-    )
-    w.set_status("complete")
-    w.close()
-    return tmp_path / "one.h5"
+    return write_run(tmp_path / "one.h5", "sphere10mm", [(frame, np.zeros(6), pose, pose)], reference=reference)
 
 
 def test_generate_over_a_split_writes_frames_and_an_index(tmp_path):
