@@ -113,8 +113,15 @@ class ObjectRender:
             return self.renderer.render(self.contact.solve(pose, needs).fields)
         w = np.asarray(wrench, dtype=float).reshape(6)
         match = contact_at_load(self.contact.solver, pose, (w[0], w[1], w[5]), needs)
-        self.last_match = match
         return self.renderer.render(match.result.fields)
+
+    def pose_at_force(self, x_mm: float, y_mm: float, theta_deg: float, fz_N: float) -> np.ndarray:
+        """(x, y, z, θ) with z the depth at which the object there presses with ``fz_N`` (the
+        simulator's own force-depth relation; ValueError for a force it cannot give)."""
+        from sensor_sim.load_match import depth_for_force
+
+        depth = depth_for_force(self.contact.solver, x_mm, y_mm, theta_deg, fz_N)
+        return np.array([x_mm, y_mm, -depth, theta_deg])
 
 
 class PhysicsRender(ObjectRender):

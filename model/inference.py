@@ -46,11 +46,8 @@ def add_physics(items: list[dict], size: int) -> None:
         wrench = np.asarray(raw, dtype=float) if raw is not None else recorded[path][int(it["frame"])]
         pose = it["pose"].numpy().astype(float)
         if it.get("depth_from_fz"):  # a force sweep's Fz: the depth where the simulator's contact gives it
-            from sensor_sim.load_match import depth_for_force
-
             x, y, _, theta = pose
-            solver = renderers[path].contact.solver
-            pose = np.array([x, y, -depth_for_force(solver, x, y, theta, max(0.0, float(wrench[2]))), theta])
+            pose = renderers[path].pose_at_force(x, y, theta, max(0.0, float(wrench[2])))
         it["physics"] = image_to_tensor(resize(renderers[path].render(pose, wrench), size))
 
 
@@ -178,14 +175,12 @@ class TrainedModel:
         """(x, y, z, θ) for the physics render: z as given; for a pose of x, y, θ and a wrench, the
         depth at which the object there presses with the wrench's Fz (the simulator's own
         force-depth relation through the checkpoint's sensor profile)."""
-        from sensor_sim.load_match import depth_for_force
-
         values = [float(v) for v in pose]
         if len(values) != 3 or wrench is None:
             return _pose4(values, need_z=True)
         x, y, _, theta = _pose4(values, need_z=False)
-        solver = self._physics_renderer(object_name).contact.solver
-        return x, y, -depth_for_force(solver, x, y, theta, float(np.asarray(wrench, dtype=float)[2])), theta
+        at = self._physics_renderer(object_name).pose_at_force(x, y, theta, float(np.asarray(wrench, dtype=float)[2]))
+        return x, y, float(at[2]), theta
 
     def _physics_renderer(self, object_name: str):
         if self.physics is None:

@@ -45,9 +45,7 @@ class LoadMatch:
 
     @property
     def matched(self) -> bool:
-        return bool(abs(self.error[0]) <= FORCE_TOL_N and abs(self.error[1]) <= FORCE_TOL_N) and bool(
-            abs(self.error[2]) <= MOMENT_TOL_NMM
-        )
+        return _within(self.error)
 
 
 def contact_at_load(
@@ -82,7 +80,7 @@ def contact_at_load(
     if use > SLIP_MARGIN:
         target = target * (SLIP_MARGIN / use)
         scaled = True
-    if abs(target[0]) <= FORCE_TOL_N and abs(target[1]) <= FORCE_TOL_N and abs(target[2]) <= MOMENT_TOL_NMM:
+    if _within(target):
         return LoadMatch(solver.add_fields(base, fields), (0.0, 0.0), 0.0, target, -target, 0, scaled)
 
     radius = max(math.sqrt(float(np.sum(p > 0))) * solver.geometry.dx_mm / 2, solver.geometry.dx_mm)
@@ -128,7 +126,7 @@ def contact_at_load(
         ds = _step(J, target - value)
         # Slip softens the response: a Newton step from the stick stiffness undershoots and
         # Broyden's update learns the softening; never more than double the motion at once.
-        limit = 1.0 * np.maximum(np.abs(s), steps)
+        limit = np.maximum(np.abs(s), steps)
         ds = np.clip(ds, -limit, limit)
         new_value, t = load_at(s + ds, q0)
         dv = new_value - value
@@ -163,7 +161,8 @@ def target_error(value: np.ndarray, target: np.ndarray) -> float:
 
 
 def _within(d: np.ndarray) -> bool:
-    return abs(d[0]) <= FORCE_TOL_N and abs(d[1]) <= FORCE_TOL_N and abs(d[2]) <= MOMENT_TOL_NMM
+    """Fx, Fy and Mz all within tolerance of zero."""
+    return bool(abs(d[0]) <= FORCE_TOL_N and abs(d[1]) <= FORCE_TOL_N and abs(d[2]) <= MOMENT_TOL_NMM)
 
 
 def _step(J: np.ndarray, r: np.ndarray) -> np.ndarray:
