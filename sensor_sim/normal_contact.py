@@ -15,7 +15,7 @@ too stops early with ``converged=False`` instead of spending ``max_iter``.
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -32,7 +32,9 @@ STALL_ITERATIONS = 4 * REFRESH
 @dataclass
 class NormalSolution:
     pressure_MPa: np.ndarray  # (ny, nx)
-    displacement_mm: np.ndarray  # (ny, nx) surface sink, positive into the gel
+    # (ny, nx) surface sink, positive into the gel: an array, or how to compute it (one
+    # more transform that the wrench does not need: done when first asked for)
+    displacement: np.ndarray | Callable[[], np.ndarray] = field(repr=False)
     force_N: float
     contact_area_mm2: float
     iterations: int
@@ -43,6 +45,12 @@ class NormalSolution:
     @property
     def contact(self) -> np.ndarray:
         return self.pressure_MPa > 0
+
+    @property
+    def displacement_mm(self) -> np.ndarray:
+        if callable(self.displacement):
+            self.displacement = self.displacement()
+        return self.displacement
 
 
 def solve_normal(
@@ -120,7 +128,14 @@ def solve_normal(
             precise, conv = True, lambda f: kernels.normal_displacement(f, precise=True)
             stall.restart(residual, it)
             u, t, delta, G_old = conv(p), np.zeros_like(p), 0.0, 1.0
-    u = conv(p)
+    final = conv
     return NormalSolution(
-        p, u, float(np.sum(p)) * cell, float(np.count_nonzero(p)) * cell, it, residual, converged, precise
+        p,
+        lambda: final(p),
+        float(np.sum(p)) * cell,
+        float(np.count_nonzero(p)) * cell,
+        it,
+        residual,
+        converged,
+        precise,
     )

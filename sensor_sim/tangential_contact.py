@@ -13,7 +13,8 @@ float64, and one that stalls there too stops early with ``converged=False``.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Callable
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -30,8 +31,9 @@ STALL_ITERATIONS = 250
 class TangentialSolution:
     qx_MPa: np.ndarray
     qy_MPa: np.ndarray
-    ux_mm: np.ndarray  # tangential surface displacement of the gel
-    uy_mm: np.ndarray
+    # the gel's tangential surface displacement (ux, uy), or how to compute it (one more
+    # pair of transforms that the wrench does not need: done when first asked for)
+    displacement: tuple[np.ndarray, np.ndarray] | Callable[[], tuple[np.ndarray, np.ndarray]] = field(repr=False)
     fx_N: float
     fy_N: float
     mz_Nmm: float  # about (xc, yc)
@@ -40,6 +42,19 @@ class TangentialSolution:
     residual: float  # relative change of q in the last iteration
     converged: bool
     float64: bool = False  # switched to double precision after stalling on float32's floor
+
+    @property
+    def ux_mm(self) -> np.ndarray:
+        return self._displacement()[0]
+
+    @property
+    def uy_mm(self) -> np.ndarray:
+        return self._displacement()[1]
+
+    def _displacement(self) -> tuple[np.ndarray, np.ndarray]:
+        if callable(self.displacement):
+            self.displacement = self.displacement()
+        return self.displacement
 
 
 def _sum(a: np.ndarray) -> float:
@@ -116,7 +131,16 @@ def solve_tangential(
     zeros = np.zeros_like(p_MPa)
     if not contact.any() or mu == 0 or (not np.any(dxf[contact]) and not np.any(dyf[contact])):
         return TangentialSolution(
-            zeros, zeros.copy(), zeros.copy(), zeros.copy(), 0.0, 0.0, 0.0, 1.0 if contact.any() else 0.0, 0, 0.0, True
+            zeros,
+            zeros.copy(),
+            (zeros.copy(), zeros.copy()),
+            0.0,
+            0.0,
+            0.0,
+            1.0 if contact.any() else 0.0,
+            0,
+            0.0,
+            True,
         )
     step = 1.0 / _lipschitz(kernels)
 
@@ -158,12 +182,22 @@ def solve_tangential(
             stall.restart(residual, it)
             displacement = _displacement(kernels, precise)
             yx, yy, t = qx, qy, 1.0  # restart the momentum in double precision
-    ux, uy = kernels.tangential_displacement(qx, qy, precise=precise)
     mag = np.hypot(qx, qy)
     sticking = contact & (mag < bound * (1 - 1e-3))
     fx = float(np.sum(qx)) * cell
     fy = float(np.sum(qy)) * cell
     mz = float(np.sum((X - xc) * qy - (Y - yc) * qx)) * cell
+    final = precise
     return TangentialSolution(
-        qx, qy, ux, uy, fx, fy, mz, float(sticking.sum()) / float(contact.sum()), it, residual, converged, precise
+        qx,
+        qy,
+        lambda: kernels.tangential_displacement(qx, qy, precise=final),
+        fx,
+        fy,
+        mz,
+        float(sticking.sum()) / float(contact.sum()),
+        it,
+        residual,
+        converged,
+        precise,
     )

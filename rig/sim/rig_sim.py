@@ -20,7 +20,7 @@ from rig.sim.pr_drive_sim import PrDriveSim
 from rig.sim.served import ServedDevice
 from rig.sim.world import SimWorld, WorldSpec
 from rig.sim.zaber_sim import ZaberChainSim, ZaberDeviceSim
-from sensor_sim.world_contact import ElastomerContact, rig_contact
+from sensor_sim.world_contact import rig_contact
 
 ZABER_MICROSTEP_MM = 0.047625e-3  # a common Zaber linear-stage microstep
 THETA_PULSES_PER_REV = 10000
@@ -73,7 +73,7 @@ class SimulatedRig:
             contact = (
                 rig_contact(shape)
                 if profile is None
-                else ElastomerContact(shape, profile.gel(), profile.geometry(cells=RIG_CELLS))
+                else rig_contact(shape, profile.gel(), profile.geometry(cells=RIG_CELLS))
             )
         self.world = SimWorld(self.clock, spec, contact=contact, seed=seed)
         self.sensor_kind = sensor_kind
