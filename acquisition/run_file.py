@@ -152,6 +152,8 @@ class RunWriter:
         self.n = f[S.FRAMES].shape[0]
         self._frames = f[S.FRAMES]
         self._frame_shape = self._frames.shape[1:]
+        self._frame_dtype = self._frames.dtype
+        self._frame_memory = h5py.h5s.create_simple((1, *self._frame_shape))  # one frame, as written
         # the fields this file has: an older file lacks the optional ones added since
         self._rows = {fl.path: f[fl.path] for fl in S.PER_FRAME_FIELDS if fl.path in f}
         self._rows_len = min(d.shape[0] for d in self._rows.values())
@@ -385,14 +387,23 @@ class RunWriter:
                 self._row_spaces = {}  # the datasets grew: their file spaces are new
             for name, d in self._rows.items():
                 self._write_row(name, d, i, row[name])
-            frames.id.set_extent((i + 1, *self._frame_shape))  # frames.resize(i + 1, axis=0), without its checks
-            frames[i] = frame
+            self._write_frame(frames, i, frame)
             self.f.flush()
         except (OSError, RuntimeError) as exc:  # h5py reports a failed flush as RuntimeError
             raise self._fail(i, exc) from None
         self.n = i + 1
         if stream is not None and len(stream) and self._stream is not None:
             self._stream_n += len(stream)
+
+    def _write_frame(self, frames: h5py.Dataset, i: int, frame: np.ndarray) -> None:
+        """``frames.resize(i + 1, axis=0); frames[i] = frame`` through h5py's low-level calls:
+        the same bytes in the same chunk (the frame converted as ``frames[i] =`` would)."""
+        shape = self._frame_shape
+        frames.id.set_extent((i + 1, *shape))
+        file = frames.id.get_space()
+        file.select_hyperslab((i, *(0,) * len(shape)), (1, *shape))
+        data = np.ascontiguousarray(frame, dtype=self._frame_dtype).reshape(1, *shape)
+        frames.id.write(self._frame_memory, file, data)
 
     def _write_stream(self, stream: np.ndarray) -> None:
         """``self._stream[m:] = stream`` after growing it by ``len(stream)`` rows, through

@@ -242,6 +242,14 @@ class Kernels:
             self._tangential_hat = (kxx, kyy, kxy)
         return self._tangential_hat
 
+    @functools.cached_property
+    def tangential_lipschitz(self) -> float:
+        """The largest eigenvalue of the tangential compliance (``tangential_hat``'s 2×2 blocks,
+        mm per MPa): the bound on a projected-gradient step, made once per grid and gel."""
+        kxx, kyy, kxy = (k.real for k in self.tangential_hat)
+        half_trace = (kxx + kyy) / 2
+        return float(np.max(half_trace + np.sqrt(((kxx - kyy) / 2) ** 2 + kxy**2)))
+
     @property
     def tangential_hat64(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``tangential_hat`` in double precision, built on first use."""

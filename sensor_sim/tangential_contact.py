@@ -61,12 +61,6 @@ def _sum(a: np.ndarray) -> float:
     return np.add.reduce(a, axis=None)
 
 
-def _lipschitz(kernels: Kernels) -> float:
-    kxx, kyy, kxy = (k.real for k in kernels.tangential_hat)
-    half_trace = (kxx + kyy) / 2
-    return float(np.max(half_trace + np.sqrt(((kxx - kyy) / 2) ** 2 + kxy**2)))
-
-
 def _displacement(kernels: Kernels, precise: bool):
     """(qx, qy) -> (ux, uy): ``kernels.tangential_displacement`` with both fields in one
     forward and one inverse transform call (the same numbers: pocketfft transforms each
@@ -142,7 +136,7 @@ def solve_tangential(
             0.0,
             True,
         )
-    step = 1.0 / _lipschitz(kernels)
+    step = 1.0 / kernels.tangential_lipschitz
 
     def project(qx, qy):
         mag = np.hypot(qx, qy)

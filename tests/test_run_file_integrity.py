@@ -355,18 +355,15 @@ def test_old_files_without_checksums_stay_readable(tmp_path):
     assert result.exit_code == 0 and "note: no checksums (old file)" in result.output
 
 
-def _raise_enospc_on(name: str, monkeypatch) -> list:
-    """Make writes to dataset ``name`` fail as on a full disk; returns the list of failed writes."""
+def _raise_enospc_on_frames(monkeypatch) -> list:
+    """Make the writer's frame writes fail as on a full disk; returns the indices that failed."""
     failed = []
-    original = h5py.Dataset.__setitem__
 
-    def full(self, key, value):
-        if self.name == name:
-            failed.append(key)
-            raise OSError(errno.ENOSPC, "No space left on device")
-        return original(self, key, value)
+    def full(self, frames, i, image):
+        failed.append(i)
+        raise OSError(errno.ENOSPC, "No space left on device")
 
-    monkeypatch.setattr(h5py.Dataset, "__setitem__", full)
+    monkeypatch.setattr(RunWriter, "_write_frame", full)
     return failed
 
 
@@ -374,7 +371,7 @@ def test_disk_full_commits_nothing_partial_and_resume_works(tmp_path, monkeypatc
     """Before: the OSError escaped untyped, and close() kept a frame whose chunk never reached the disk."""
     path = make_run(tmp_path / "run.h5", n=5, size=32, status="running")
     w = RunWriter.reopen(path)
-    failed = _raise_enospc_on("/" + S.FRAMES, monkeypatch)
+    failed = _raise_enospc_on_frames(monkeypatch)
     with pytest.raises(
         RunFileError,
         match=rf"{path}: disk full: frame 5 could not be written "
@@ -495,7 +492,7 @@ def test_disk_full_mid_run_stops_retracts_and_resume_completes(quick, tmp_path, 
     failed = []
 
     def fill_disk_at_frame_6(sim):
-        failed.extend(_raise_enospc_on("/" + S.FRAMES, monkeypatch))
+        failed.extend(_raise_enospc_on_frames(monkeypatch))
 
     with simulated_rig_for(quick) as (rig, sim, header):
         acq = Acquisition(
