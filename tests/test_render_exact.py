@@ -1,4 +1,6 @@
-"""The renderer's frames are bit for bit those of its plain formulation.
+"""The renderer's frames are bit for bit those of its plain formulation (with the colour
+lookup's own gather), and within one grey level in a few pixels per million of it with
+``cv2.remap`` doing the lookup (where this OpenCV interpolates exactly).
 
 ``sensor_sim/optics.py`` builds frames in (3, H, W) planes from per-renderer constants,
 gathers the colour table's corners in one call, keeps the last press image and marker
@@ -17,9 +19,10 @@ import numpy as np
 import pytest
 from scipy.ndimage import map_coordinates
 
+import sensor_sim.light as light_module
 from common.sensors import SENSOR_KINDS
 from objects.pose import Pose
-from sensor_sim.light import CEIL, FLOOR, KNEE_HIGH, KNEE_LOW
+from sensor_sim.light import CEIL, FLOOR, KNEE_HIGH, KNEE_LOW, remap_interpolates_exactly
 from sensor_sim.optics import Renderer
 from sensor_sim.profile import default_profile
 from sensor_sim.scene import Scene
@@ -161,6 +164,12 @@ class _ReferenceRenderer:
 
 
 # -- the comparison ---------------------------------------------------------------------------
+@pytest.fixture
+def gather(monkeypatch):
+    """The colour lookup through its own gather (bit for bit the reference)."""
+    monkeypatch.setattr(light_module, "remap_interpolates_exactly", lambda: False)
+
+
 @pytest.fixture(scope="module")
 def fields_by_kind() -> dict[str, list[dict[str, np.ndarray]]]:
     """The mechanics fields of STATES, solved once per kind (the markers need uxy)."""
@@ -183,7 +192,7 @@ def _bright_and_dark(shape=(240, 320)) -> np.ndarray:
 @pytest.mark.parametrize("kind", SENSOR_KINDS)
 @pytest.mark.parametrize("noise", [True, False], ids=["noise", "no-noise"])
 @pytest.mark.parametrize("background", ["profile", "bright-dark"])
-def test_frames_equal_the_reference_bit_for_bit(fields_by_kind, kind, noise, background):
+def test_frames_equal_the_reference_bit_for_bit(gather, fields_by_kind, kind, noise, background):
     profile = default_profile()
     spec = profile.optics_spec(kind)
     geometry = Scene("sphere10mm", kind).geometry
@@ -206,7 +215,7 @@ def test_frames_equal_the_reference_bit_for_bit(fields_by_kind, kind, noise, bac
         assert frames[5].max() > KNEE_HIGH and frames[5].min() < KNEE_LOW
 
 
-def test_renderer_state_follows_the_noise_switch(fields_by_kind):
+def test_renderer_state_follows_the_noise_switch(gather, fields_by_kind):
     """Tests and benches turn the noise off with ``renderer._noise = None``; turning it back
     on with a bank gives that bank's noise."""
     profile = default_profile()
@@ -223,7 +232,7 @@ def test_renderer_state_follows_the_noise_switch(fields_by_kind):
     assert np.array_equal(new.render(press), ref.render(press))
 
 
-def test_slope_change_and_marker_mask_equal_the_reference(fields_by_kind):
+def test_slope_change_and_marker_mask_equal_the_reference(gather, fields_by_kind):
     """The public pieces (the colour change, the marker coverage) are unchanged too."""
     profile = default_profile()
     for kind in SENSOR_KINDS:
@@ -237,3 +246,47 @@ def test_slope_change_and_marker_mask_equal_the_reference(fields_by_kind):
             centres = ref.marker_positions_px(fields["ux"], fields["uy"])
             assert np.array_equal(new.marker_positions_px(fields["ux"], fields["uy"]), centres)
             assert np.array_equal(new._marker_mask(centres), ref.marker_mask(centres))
+
+
+@pytest.mark.parametrize("kind", ["rgb", "rgb_markers"])
+def test_remap_lookup_frames_within_one_grey_level_of_the_reference(fields_by_kind, kind):
+    """The default path (``cv2.remap`` where it interpolates exactly): every state's frame
+    within 1 grey level of the reference, in at most 1 pixel value in 10,000."""
+    if not remap_interpolates_exactly():
+        pytest.skip("this OpenCV rounds remap's fraction: the renderer keeps the gather (tested above)")
+    profile = default_profile()
+    spec = profile.optics_spec(kind)
+    geometry = Scene("sphere10mm", kind).geometry
+    bg = _bright_and_dark()
+    new = Renderer(spec, geometry, bg, SEED, profile=profile)
+    ref = _ReferenceRenderer(spec, geometry, bg, SEED, profile=profile)
+    differing = total = 0
+    for fields in fields_by_kind[kind]:
+        got, want = new.render(fields), ref.render(fields)
+        diff = np.abs(got.astype(int) - want.astype(int))
+        assert diff.max() <= 1
+        differing, total = differing + int((diff > 0).sum()), total + diff.size
+    assert differing <= total // 10_000, f"{differing} of {total} values differ"
+
+
+def test_a_rounding_remap_is_not_used(monkeypatch, fields_by_kind):
+    """An OpenCV whose remap rounds the fraction to 1/32 of a cell (as 4.x does) fails the
+    check, and the lookup keeps the gather: the frames stay the reference's, bit for bit."""
+    real_remap = cv2.remap
+
+    def rounding_remap(src, map_x, map_y, interpolation, **kw):
+        return real_remap(src, np.round(map_x * 32) / 32, np.round(map_y * 32) / 32, interpolation, **kw)
+
+    monkeypatch.setattr(cv2, "remap", rounding_remap)
+    remap_interpolates_exactly.cache_clear()
+    try:
+        assert not light_module.remap_interpolates_exactly()
+        profile = default_profile()
+        spec = profile.optics_spec("rgb")
+        geometry = Scene("sphere10mm", "rgb").geometry
+        new = Renderer(spec, geometry, None, SEED, profile=profile)
+        ref = _ReferenceRenderer(spec, geometry, None, SEED, profile=profile)
+        for fields in fields_by_kind["rgb"]:
+            assert np.array_equal(new.render(fields), ref.render(fields))
+    finally:
+        remap_interpolates_exactly.cache_clear()

@@ -279,9 +279,11 @@ def test_profile_refuses_bad_values_with_one_line(tmp_path, edit, message):
     assert str(path) in str(info.value) and "\n" not in str(info.value)
 
 
-def test_colour_lookup_is_the_same_float32_result_as_the_stacked_bilinear_table():
+def test_colour_lookup_is_the_same_float32_result_as_the_stacked_bilinear_table(monkeypatch):
     """``LightModel.change`` gathers per corner for speed; it must equal the plain
-    formula (stack the four corners, weight, sum) bit for bit, shading included."""
+    formula (stack the four corners, weight, sum) bit for bit, shading included. Through
+    ``cv2.remap`` (where this OpenCV interpolates exactly) it is the same to float32 rounding."""
+    import sensor_sim.light as light_module
     from sensor_sim.light import normal_lookup
 
     light = default_profile().light
@@ -294,4 +296,8 @@ def test_colour_lookup_is_the_same_float32_result_as_the_stacked_bilinear_table(
     expected = np.stack([(flat[ch][idx] * w).sum(axis=-1) for ch in range(3)], axis=-1)
     if light.shading == "multiplicative":
         expected *= background / np.asarray(light.reference_bgr, dtype=np.float32)
+    if light_module.remap_interpolates_exactly():
+        remapped = light.change(gx, gy, background)
+        assert np.abs(remapped - expected).max() < 1e-3 and not np.array_equal(remapped, 0 * expected)
+    monkeypatch.setattr(light_module, "remap_interpolates_exactly", lambda: False)
     assert np.array_equal(light.change(gx, gy, background), expected)
