@@ -267,6 +267,7 @@ class Acquisition:
                         object_image,
                         reference,
                         lock=lock,
+                        codec=info.get("frame_codec") or None,  # None: the image codec where it applies
                     )
                 self._main(writer, k0, result)
                 self.m.move({"z": self._safe_z()}, proto.approach_speed_mm_s)  # retract, not captured

@@ -22,7 +22,15 @@ import numpy as np
 from acquisition import schema as S
 from acquisition.run_file import open_for_reading
 from acquisition.run_layout import layout_problems
-from acquisition.run_storage import ROW_BLOCK, STREAM_BLOCK, chunked, fsync_path, remove_stale_temps, temp_path
+from acquisition.run_storage import (
+    ROW_BLOCK,
+    STREAM_BLOCK,
+    chunked,
+    frames_codec,
+    fsync_path,
+    remove_stale_temps,
+    temp_path,
+)
 from acquisition.writer_lock import RunFileError, WriterLock
 
 ROW_FIELDS = {f.path: ROW_BLOCK for f in S.PER_FRAME_FIELDS} | {f.path: STREAM_BLOCK for f in S.STREAM_FIELDS}
@@ -38,10 +46,8 @@ class Compacted:
 
 
 def frames_compressed(f: h5py.File) -> bool:
-    """Are the file's frames stored with the schema's codec?"""
-    dcpl = f[S.FRAMES].id.get_create_plist()
-    codec = S.FRAME_CODEC["compression"]
-    return any(dcpl.get_filter(i)[0] == codec for i in range(dcpl.get_nfilters()))
+    """Are the file's frames stored with one of the schema's codecs?"""
+    return frames_codec(f) is not None
 
 
 def _line(exc: BaseException) -> str:
@@ -59,7 +65,11 @@ def _copy(src: h5py.File, dst: h5py.File) -> None:
         if name == S.FRAMES:
             n, *shape = obj.shape
             d = dst.create_dataset(
-                name, (n, *shape), maxshape=(None, *shape), dtype=obj.dtype, **chunked((1, *shape), compress=True)
+                name,
+                (n, *shape),
+                maxshape=(None, *shape),
+                dtype=obj.dtype,
+                **chunked((1, *shape), codec=S.frame_codec(tuple(shape))),
             )
             for i in range(n):  # one frame at a time: a run does not fit in memory
                 d[i] = obj[i]

@@ -6,7 +6,7 @@
   (disk full) is rolled back to the last counted frame, recorded as the reason, and
   raised as RunFileError, so no partial or all-zero frame is ever committed.
 * Frames and rows carry Fletcher-32 checksums per chunk: corruption fails on read.
-  Frames are losslessly compressed (``schema.FRAME_CODEC``), one frame per chunk.
+  Frames are losslessly compressed (``schema.FRAME_CODECS``), one frame per chunk.
 * Every dataset comes from the schema's field table: a field added there is written.
 * Created under a temporary name and renamed into place once the header, reference
   frame and object image are on disk: a crash leaves nothing at ``--out``.
@@ -92,7 +92,9 @@ def _first_line(exc: BaseException) -> str:
     return str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
 
 
-def _write_header(f: h5py.File, header: RunHeader, frame_shape, object_image, reference_frame, compress: bool) -> None:
+def _write_header(
+    f: h5py.File, header: RunHeader, frame_shape, object_image, reference_frame, codec: str | None
+) -> None:
     a = f.attrs
     a[S.ATTR_SCHEMA] = S.SCHEMA_VERSION
     a[S.ATTR_SOFTWARE] = __version__
@@ -119,7 +121,7 @@ def _write_header(f: h5py.File, header: RunHeader, frame_shape, object_image, re
         (0, h, w, c),
         maxshape=(None, h, w, c),
         dtype=S.FRAMES_FIELD.dtype,
-        **chunked((1, h, w, c), compress=compress),
+        **chunked((1, h, w, c), codec=codec),
     )
     frames.attrs["units"] = S.FRAMES_FIELD.units
     for field in S.PER_FRAME_FIELDS:
@@ -186,10 +188,13 @@ class RunWriter:
         *,
         lock: WriterLock | None = None,
         compress: bool = True,
+        codec: str | None = None,
     ) -> "RunWriter":
         """A new run file at ``path``, which must not exist. Takes the writer lock (or uses
         ``lock``, already taken); RunLocked names another live writer, RunFileError the rest.
-        ``compress=False`` writes frames uncompressed, as files before compression were."""
+        ``codec``: the frames' codec (a name in the schema's FRAME_CODECS; None: the image
+        codec where the frames suit it, see ``schema.frame_codec``). ``compress=False``
+        writes frames uncompressed, as files before compression were."""
         path = Path(path)
         lock = lock or WriterLock.acquire(path)
         try:
@@ -199,7 +204,8 @@ class RunWriter:
             tmp = temp_path(path, ".creating-")
             try:
                 with h5py.File(tmp, "w", libver="latest") as f:
-                    _write_header(f, header, frame_shape, object_image, reference_frame, compress)
+                    chosen = S.frame_codec(tuple(frame_shape), codec) if compress else None
+                    _write_header(f, header, frame_shape, object_image, reference_frame, chosen)
                 fsync_path(tmp)
                 os.replace(tmp, path)  # only a complete header ever appears at the run's name
             except (OSError, RuntimeError) as exc:

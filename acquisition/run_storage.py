@@ -24,15 +24,23 @@ STREAM_BLOCK = 1024  # rows per chunk of a stream dataset: ~10 s of a 100 Hz gau
 TEMP_MARKS = (".creating-", ".recovering-", ".compacting-")  # RUN.h5.creating-PID, ...
 
 
-def chunked(chunks: tuple[int, ...], *, compress: bool = False) -> dict:
+def chunked(chunks: tuple[int, ...], *, codec: str | None = None) -> dict:
     """Creation keywords of every growing dataset: the one place for its filters.
 
     Fletcher-32 stores a checksum per chunk, checked on every read. One frame per
-    chunk keeps a damaged chunk to one frame; ``compress`` (frames) adds the schema's
-    lossless codec, which h5py puts before the checksum, so the checksum covers the
-    bytes on disk.
+    chunk keeps a damaged chunk to one frame; ``codec`` (frames: a name in the schema's
+    FRAME_CODECS) adds that lossless codec, which h5py puts before the checksum, so the
+    checksum covers the bytes on disk.
     """
-    return {"chunks": chunks, "fletcher32": True, **(S.FRAME_CODEC if compress else {})}
+    return {"chunks": chunks, "fletcher32": True, **(S.FRAME_CODECS[codec] if codec else {})}
+
+
+def frames_codec(f: h5py.File) -> str | None:
+    """The name (in the schema's FRAME_CODECS) of the codec ``f``'s frames are stored with;
+    None when uncompressed (files before compression) or in a codec this version does not write."""
+    dcpl = f[S.FRAMES].id.get_create_plist()
+    ids = {dcpl.get_filter(i)[0] for i in range(dcpl.get_nfilters())}
+    return next((name for name, kw in S.FRAME_CODECS.items() if kw["compression"] in ids), None)
 
 
 def temp_path(path: Path, mark: str) -> Path:

@@ -154,9 +154,29 @@ ATTRS = (
 # readers treat a missing one as "not recorded" (model/baseline.py: the default profile).
 OPTIONAL_ATTRS = ((ATTR_SENSOR_PROFILE, "str"), (ATTR_OBJECT_FILE, "str"), (ATTR_OBJECT_PHOTO_SHA256, "str"))
 
-# The frames' lossless codec, chosen by bench/storage_bench.py (docs/benchmarks.md):
-# Blosc with Zstandard level 1 on bit planes. Neighbouring pixels share their high
-# bits, so bit-shuffled frames compress to 0.55 of raw (real GelSight frames) at
-# ~800 frames/s written, where gzip-1 gave 0.59 at ~280 frames/s.
-FRAME_CODEC_NAME = "blosc-zstd-1+bitshuffle"
-FRAME_CODEC = dict(hdf5plugin.Blosc(cname="zstd", clevel=1, shuffle=hdf5plugin.Blosc.BITSHUFFLE))
+# The frames' lossless codecs, chosen by bench/storage_bench.py (docs/benchmarks.md):
+# - IMAGE_CODEC, HTJ2K (JPEG 2000's high-throughput coder, reversible): each pixel
+#   predicted from its neighbours by the wavelet, so real GelSight frames take 0.24-0.28
+#   of raw, written at ~590 frames/s at 256x256 and ~140 at 640x480. The default for
+#   frames of 1 or 3 channels (what the filter accepts).
+# - FAST_CODEC, Blosc with Zstandard level 1 on bit planes (neighbouring pixels share
+#   their high bits): 0.48-0.55 of raw on real frames, 0.66-0.77 on simulated ones, at
+#   ~1,400 frames/s. The simulated rig's runs use it (its frames are mostly sensor noise,
+#   where HTJ2K gains little, and a run writes ~150 frames/s), as do other channel counts.
+IMAGE_CODEC = "htj2k"
+FAST_CODEC = "blosc-zstd-1+bitshuffle"
+FRAME_CODECS = {
+    IMAGE_CODEC: dict(hdf5plugin.Htj2k()),
+    FAST_CODEC: dict(hdf5plugin.Blosc(cname="zstd", clevel=1, shuffle=hdf5plugin.Blosc.BITSHUFFLE)),
+}
+
+
+def frame_codec(frame_shape: tuple[int, ...], preferred: str | None = None) -> str:
+    """The codec for frames of ``frame_shape`` (H, W, C): ``preferred`` (a FRAME_CODECS
+    name) or the image codec, which takes 1 or 3 channels only (else the fast one)."""
+    if preferred is not None and preferred not in FRAME_CODECS:
+        raise ValueError(f"frame codec must be one of {', '.join(FRAME_CODECS)}, got {preferred!r}")
+    codec = preferred or IMAGE_CODEC
+    if codec == IMAGE_CODEC and (len(frame_shape) != 3 or frame_shape[2] not in (1, 3)):
+        return FAST_CODEC
+    return codec

@@ -76,11 +76,13 @@ def simulated_images(n: int) -> np.ndarray:
     return np.stack([scene.frame(Pose(0.3 * np.sin(i), 0.0, -0.2 - 1.4 * i / n, 0.0)).image for i in range(n)])
 
 
-def writer(frames: int, images: np.ndarray, what: str, compress: bool) -> None:
+def writer(frames: int, images: np.ndarray, what: str, codec: str | None) -> None:
     header = RunHeader("bench", "", "", "sphere10mm", "", "rgb", 14 / 256, 1.0, frames, (0, 0, 0, 0), PHASES)
     row = S.blank_row()  # every per-frame field of the table: a field added there needs nothing here
     with tempfile.TemporaryDirectory() as tmp:
-        w = RunWriter.create(Path(tmp) / "w.h5", header, (256, 256, 3), images[0], images[0], compress=compress)
+        w = RunWriter.create(
+            Path(tmp) / "w.h5", header, (256, 256, 3), images[0], images[0], compress=codec is not None, codec=codec
+        )
         t = time.perf_counter()
         for i in range(frames):
             row[S.CAPTURE_INDEX] = i
@@ -88,7 +90,7 @@ def writer(frames: int, images: np.ndarray, what: str, compress: bool) -> None:
         dt = time.perf_counter() - t
         w.close()
         size = (Path(tmp) / "w.h5").stat().st_size
-    print(f"| {what} | {S.FRAME_CODEC_NAME if compress else 'none'} | {frames / dt:.0f} | {size / frames / 1e3:.1f} |")
+    print(f"| {what} | {codec or 'none'} | {frames / dt:.0f} | {size / frames / 1e3:.1f} |")
 
 
 def main() -> None:
@@ -106,8 +108,8 @@ def main() -> None:
         ("simulated rgb", simulated_images(16)),
         ("random (incompressible)", rng.integers(0, 256, (16, 256, 256, 3), dtype=np.uint8)),
     ):
-        for compress in (False, True):
-            writer(args.frames, images, what, compress)
+        for codec in (None, *S.FRAME_CODECS):
+            writer(args.frames, images, what, codec)
 
 
 if __name__ == "__main__":

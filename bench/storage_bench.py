@@ -56,6 +56,8 @@ def codecs() -> dict[str, dict]:
         "blosc-zstd-3+bitshuffle": dict(hdf5plugin.Blosc(cname="zstd", clevel=3, shuffle=hdf5plugin.Blosc.BITSHUFFLE)),
         "bitshuffle-lz4": dict(hdf5plugin.Bitshuffle(cname="lz4")),
         "bitshuffle-zstd": dict(hdf5plugin.Bitshuffle(cname="zstd")),
+        # image codecs: the pixel predicted from its neighbours, the residual coded
+        "htj2k": dict(hdf5plugin.Htj2k()),  # JPEG 2000 (high-throughput), reversible
     }
     return table
 

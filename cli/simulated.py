@@ -10,7 +10,7 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 
-from acquisition.schema import RIG_CONFIG_MARK
+from acquisition.schema import FAST_CODEC, RIG_CONFIG_MARK
 from rig.clock import ManualClock
 from rig.config import SafetyConfig
 from rig.rig import Rig
@@ -48,6 +48,9 @@ def simulated_rig_for(
             "rig_config": RIG_CONFIG_MARK + "\n" + simulated.config_toml(),
             "mm_per_px": geometry.width_mm / cfg.camera.width,
             "sensor_profile": profile.record(),
+            # the simulator's frames are mostly sensor noise, written ~150 a second: the fast codec
+            # (acquisition/schema.py; docs/benchmarks.md, "Run-file storage")
+            "frame_codec": FAST_CODEC,
         }
         with Rig.open(cfg, clock, camera=True, sim=simulated) as rig:
             yield rig, simulated, header

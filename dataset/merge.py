@@ -18,6 +18,7 @@ import numpy as np
 from acquisition import schema as S
 from acquisition.run_file import RunFileError, RunHeader, RunWriter
 from acquisition.run_layout import decode_phases
+from acquisition.run_storage import frames_codec
 from dataset.runs import open_run, read
 
 
@@ -51,7 +52,14 @@ def merge_runs(paths: Sequence[str | Path], out: str | Path) -> int:
             contact_origin=tuple(a.get(S.ATTR_CONTACT_ORIGIN, (0, 0, 0, 0))),
             phases=tuple(phases),
         )
-        writer = RunWriter.create(out, header, keys[0][2], first[S.OBJECT_IMAGE][()], first[S.REFERENCE_FRAME][()])
+        writer = RunWriter.create(
+            out,
+            header,
+            keys[0][2],
+            first[S.OBJECT_IMAGE][()],
+            first[S.REFERENCE_FRAME][()],
+            codec=frames_codec(first),  # the first run's codec (simulated runs: the fast one); None: the default
+        )
         k = 0
         try:
             statuses = []

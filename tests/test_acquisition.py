@@ -79,6 +79,8 @@ def test_complete_run_is_synchronised_and_physical(quick, tmp_path):
         assert f.attrs[S.ATTR_MM_PER_PX] == pytest.approx(14.0 / 256)
         assert f[S.OBJECT_IMAGE].shape == (256, 256, 3) and f[S.REFERENCE_FRAME].shape == (256, 256, 3)
         assert "simulated rig" in f.attrs[S.ATTR_RIG_CONFIG]
+        dcpl = f[S.FRAMES].id.get_create_plist()  # the simulated rig's frames: the fast codec
+        assert dcpl.get_filter(0)[0] == S.FRAME_CODECS[S.FAST_CODEC]["compression"]
     assert final["z"] == pytest.approx(quick.approach_mm, abs=1e-3)  # retracted at the end
 
 

@@ -35,9 +35,9 @@ def frame(i: int) -> np.ndarray:
     return np.clip(base + noise, 0, 255).astype(np.uint8)
 
 
-def write_run(path, n=12, *, compress=True):
+def write_run(path, n=12, *, compress=True, codec=None):
     header = RunHeader("test", "# x", "", "sphere10mm", "", "rgb", 0.5, 1.0, n, (0, 0, 0, 0), PHASES)
-    w = RunWriter.create(path, header, (SIZE, SIZE, 3), frame(99), frame(98), compress=compress)
+    w = RunWriter.create(path, header, (SIZE, SIZE, 3), frame(99), frame(98), compress=compress, codec=codec)
     for i in range(n):
         w.append(
             frame(i),
@@ -53,11 +53,19 @@ def digest(path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
-def test_compressed_frames_round_trip_frame_by_frame(tmp_path):
-    path = write_run(tmp_path / "run.h5")
+def filter_ids(d: h5py.Dataset) -> list[int]:
+    dcpl = d.id.get_create_plist()
+    return [dcpl.get_filter(i)[0] for i in range(dcpl.get_nfilters())]
+
+
+@pytest.mark.parametrize("codec", [None, *S.FRAME_CODECS])
+def test_compressed_frames_round_trip_frame_by_frame(tmp_path, codec):
+    path = write_run(tmp_path / "run.h5", codec=codec)
     with open_for_reading(path) as f:
         d = f[S.FRAMES]
         assert frames_compressed(f) and d.fletcher32 and d.chunks == (1, SIZE, SIZE, 3)
+        # the codec, then the checksum over the bytes on disk; by default the image codec
+        assert filter_ids(d) == [S.FRAME_CODECS[codec or S.IMAGE_CODEC]["compression"], h5py.h5z.FILTER_FLETCHER32]
         for i in range(d.shape[0]):
             np.testing.assert_array_equal(d[i], frame(i), err_msg=f"frame {i}")
     assert check_run(path).findings == []
@@ -146,3 +154,38 @@ def test_dataset_compact_command(tmp_path):
     assert result.exit_code == 0 and "12 frames compacted" in result.output, result.output
     result = runner.invoke(dataset_app, ["compact", str(path)])
     assert result.exit_code == 0 and "already compressed; unchanged" in result.output
+
+
+def test_frame_codec_choice():
+    """HTJ2K takes 1 or 3 channels; other frames get the fast codec; a wrong name is refused."""
+    assert S.frame_codec((480, 640, 3)) == S.frame_codec((32, 32, 1)) == S.IMAGE_CODEC
+    assert S.frame_codec((32, 32, 4)) == S.frame_codec((32, 32, 2)) == S.FAST_CODEC
+    assert S.frame_codec((32, 32, 3), S.FAST_CODEC) == S.FAST_CODEC
+    with pytest.raises(ValueError, match="frame codec must be one of"):
+        S.frame_codec((32, 32, 3), "gzip")
+
+
+def test_four_channel_frames_are_stored_with_the_fast_codec(tmp_path):
+    header = RunHeader("test", "# x", "", "sphere10mm", "", "rgb", 0.5, 1.0, 2, (0, 0, 0, 0), PHASES)
+    image = np.dstack([frame(1), frame(2)[..., :1]])
+    w = RunWriter.create(tmp_path / "rgba.h5", header, image.shape, frame(99), image)
+    w.append(image, **S.blank_row() | {S.CAPTURE_INDEX: 0})
+    w.close()
+    with open_for_reading(tmp_path / "rgba.h5") as f:
+        assert filter_ids(f[S.FRAMES])[0] == S.FRAME_CODECS[S.FAST_CODEC]["compression"]
+        np.testing.assert_array_equal(f[S.FRAMES][0], image)
+
+
+@pytest.mark.parametrize("codec", list(S.FRAME_CODECS))
+def test_merge_keeps_the_runs_codec_and_frames(tmp_path, codec):
+    """A merge of simulated runs (the fast codec) stays in it; of camera runs, in HTJ2K."""
+    from acquisition.run_storage import frames_codec
+    from dataset.merge import merge_runs
+
+    a = write_run(tmp_path / "a.h5", n=3, codec=codec)
+    b = write_run(tmp_path / "b.h5", n=2, codec=codec)
+    assert merge_runs([a, b], tmp_path / "merged.h5") == 5
+    with open_for_reading(tmp_path / "merged.h5") as f:
+        assert frames_codec(f) == codec
+        for i, j in enumerate([0, 1, 2, 0, 1]):
+            np.testing.assert_array_equal(f[S.FRAMES][i], frame(j))
