@@ -233,7 +233,11 @@ class LightModel:
             u, v = u.astype(np.float32, copy=False), v.astype(np.float32, copy=False)
             planes = np.empty((3, *u.shape), np.float32)
             for ch in range(3):
-                cv2.remap(self._planes[ch], u, v, cv2.INTER_LINEAR, dst=planes[ch], borderMode=cv2.BORDER_REPLICATE)
+                got = cv2.remap(
+                    self._planes[ch], u, v, cv2.INTER_LINEAR, dst=planes[ch], borderMode=cv2.BORDER_REPLICATE
+                )
+                if got.ctypes.data != planes[ch].ctypes.data:  # OpenCV chose a buffer of its own
+                    planes[ch] = got
                 if scale is not None:
                     planes[ch] *= scale[ch]
             return planes
