@@ -5,7 +5,8 @@ the page is driven as a user would: the live frame updates, a jog button moves t
 the force trace responds, marker-flow arrows follow a shear, STOP halts a move, a second
 browser is refused control, the run browser shows frame N and its wrench for a run recorded
 here, and a `rig run-protocol` started as its own process shows live in the progress panel.
-Screenshots go to docs/img/.
+Screenshots go to a temporary folder, or to $TACTILE_SCREENSHOTS where set (the documentation's
+are refreshed with TACTILE_SCREENSHOTS=docs/img): a test run never rewrites tracked files.
 
 scripts/setup.sh installs chromium and chromium-driver where they are missing; without them
 these tests skip locally and fail under CI (CI=true), so a missing install cannot pass silently.
@@ -15,6 +16,7 @@ from __future__ import annotations
 
 import os
 import shutil
+import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -27,8 +29,7 @@ from cli.console.server import serving_in_thread
 
 pytestmark = pytest.mark.slow
 
-ROOT = Path(__file__).resolve().parents[1]
-IMG = ROOT / "docs" / "img"
+IMG = Path(os.environ.get("TACTILE_SCREENSHOTS") or tempfile.mkdtemp(prefix="console-screenshots-"))
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 CHROMEDRIVER = shutil.which("chromedriver")
 WAIT_S = 60.0  # generous: two shared cores, a contact solve per frame
