@@ -32,7 +32,7 @@ import numpy as np
 
 from acquisition import schema as S
 from acquisition.hdf5_open import check_complete, open_swmr_read
-from acquisition.run_layout import decode_phases, layout_problems
+from acquisition.run_layout import decode_phases, frame_filter_problems, layout_problems
 from acquisition.run_storage import (
     ROW_BLOCK,
     STREAM_BLOCK,
@@ -378,6 +378,8 @@ class RunWriter:
         frames = self._frames
         if frame.shape != self._frame_shape:
             raise RunFileError(f"{self.path}: frame shape {frame.shape} differs from the run's {self._frame_shape}")
+        if frame.dtype != self._frame_dtype:  # no silent conversion (a 16-bit or float image would wrap or clip)
+            raise RunFileError(f"{self.path}: frame dtype {frame.dtype}, the run's frames are {self._frame_dtype}")
         self._check_row(i, row)
         self._check_space(i, frame.nbytes)
         try:
@@ -403,12 +405,12 @@ class RunWriter:
 
     def _write_frame(self, frames: h5py.Dataset, i: int, frame: np.ndarray) -> None:
         """``frames.resize(i + 1, axis=0); frames[i] = frame`` through h5py's low-level calls:
-        the same bytes in the same chunk (the frame converted as ``frames[i] =`` would)."""
+        the same bytes in the same chunk (``append`` has checked the frame's shape and dtype)."""
         shape = self._frame_shape
+        data = np.ascontiguousarray(frame).reshape(1, *shape)
         frames.id.set_extent((i + 1, *shape))
         file = frames.id.get_space()
         file.select_hyperslab((i, *(0,) * len(shape)), (1, *shape))
-        data = np.ascontiguousarray(frame, dtype=self._frame_dtype).reshape(1, *shape)
         frames.id.write(self._frame_memory, file, data)
 
     def _write_stream(self, stream: np.ndarray) -> None:
@@ -530,6 +532,11 @@ def open_for_reading(path: str | Path) -> h5py.File:
     if problem and not (problem.startswith("truncated:") and live_writer(path)):
         raise RunFileError(f"{path}: {problem}")
     try:
-        return open_swmr_read(path)
+        f = open_swmr_read(path)
     except (OSError, RuntimeError, KeyError) as exc:
         raise RunFileError(f"{path}: not a readable HDF5 run file ({_first_line(exc)})") from None
+    undecodable = frame_filter_problems(f)
+    if undecodable:
+        f.close()
+        raise RunFileError(f"{path}: {S.FRAMES}: {undecodable[0]}")
+    return f

@@ -110,6 +110,30 @@ def phase_names(f: h5py.File, indices: np.ndarray) -> list[str]:
 
 def layout_problems(f: h5py.File) -> list[str]:
     """Every dataset and attribute problem as 'path: problem' lines (empty when the layout is sound)."""
-    return [f"{path}: {p}" for path, p in field_problems(f).items()] + [
-        f"attribute {name}: {p}" for name, p in attr_problems(f).items()
-    ]
+    return (
+        [f"{path}: {p}" for path, p in field_problems(f).items()]
+        + [f"attribute {name}: {p}" for name, p in attr_problems(f).items()]
+        + [f"{S.FRAMES}: {p}" for p in frame_filter_problems(f)]
+    )
+
+
+def frame_filter_problems(f: h5py.File) -> list[str]:
+    """The frames' filters this installation cannot apply, in words (a codec's plugin missing:
+    every frame would fail to read, which must not pass for frames that never reached the disk)."""
+    try:
+        d = f.get(S.FRAMES)
+        if not isinstance(d, h5py.Dataset):
+            return []
+        dcpl = d.id.get_create_plist()
+        ids = [dcpl.get_filter(i)[0] for i in range(dcpl.get_nfilters())]
+    except (OSError, RuntimeError, KeyError, ValueError):
+        return []  # a damaged header: field_problems names it
+    names = {fid: name for name, fid in S.CODEC_FILTER_IDS.items()}
+    problems = []
+    for fid in ids:
+        if not h5py.h5z.filter_avail(fid):
+            problems.append(
+                f"stored with {names.get(fid, 'a codec')} (HDF5 filter {fid}), which this installation cannot "
+                "decode: install hdf5plugin 7.1 or later (pip install 'hdf5plugin>=7.1')"
+            )
+    return problems

@@ -36,11 +36,11 @@ def chunked(chunks: tuple[int, ...], *, codec: str | None = None) -> dict:
 
 
 def frames_codec(f: h5py.File) -> str | None:
-    """The name (in the schema's FRAME_CODECS) of the codec ``f``'s frames are stored with;
+    """The name (in the schema's CODEC_FILTER_IDS) of the codec ``f``'s frames are stored with;
     None when uncompressed (files before compression) or in a codec this version does not write."""
     dcpl = f[S.FRAMES].id.get_create_plist()
     ids = {dcpl.get_filter(i)[0] for i in range(dcpl.get_nfilters())}
-    return next((name for name, kw in S.FRAME_CODECS.items() if kw["compression"] in ids), None)
+    return next((name for name, fid in S.CODEC_FILTER_IDS.items() if fid in ids), None)
 
 
 def temp_path(path: Path, mark: str) -> Path:

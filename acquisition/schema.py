@@ -161,22 +161,34 @@ OPTIONAL_ATTRS = ((ATTR_SENSOR_PROFILE, "str"), (ATTR_OBJECT_FILE, "str"), (ATTR
 #   frames of 1 or 3 channels (what the filter accepts).
 # - FAST_CODEC, Blosc with Zstandard level 1 on bit planes (neighbouring pixels share
 #   their high bits): 0.48-0.55 of raw on real frames, 0.66-0.77 on simulated ones, at
-#   ~1,400 frames/s. The simulated rig's runs use it (its frames are mostly sensor noise,
-#   where HTJ2K gains little, and a run writes ~150 frames/s), as do other channel counts.
+#   ~1,400 frames/s. The simulated rig's runs use it (a run writes ~150 frames/s, and
+#   HTJ2K's ~1 ms more a frame would be a sixth of it; on simulated frames HTJ2K gives
+#   0.38 / 0.69 / 0.76 of raw for rgb / rgb_markers / white_markers), as do other
+#   channel counts.
 IMAGE_CODEC = "htj2k"
 FAST_CODEC = "blosc-zstd-1+bitshuffle"
-FRAME_CODECS = {
-    IMAGE_CODEC: dict(hdf5plugin.Htj2k()),
-    FAST_CODEC: dict(hdf5plugin.Blosc(cname="zstd", clevel=1, shuffle=hdf5plugin.Blosc.BITSHUFFLE)),
-}
+CODEC_FILTER_IDS = {IMAGE_CODEC: 32033, FAST_CODEC: 32001}  # HDF5's registered filter ids
+
+
+def _codecs() -> dict[str, dict]:
+    """The codecs this installation can write: HTJ2K needs hdf5plugin 7.1 or later with the
+    filter built in (a stripped or older build falls back to Blosc for every frame)."""
+    codecs = {FAST_CODEC: dict(hdf5plugin.Blosc(cname="zstd", clevel=1, shuffle=hdf5plugin.Blosc.BITSHUFFLE))}
+    htj2k = getattr(hdf5plugin, "Htj2k", None)
+    if htj2k is not None and IMAGE_CODEC in getattr(hdf5plugin.get_config(), "registered_filters", {}):
+        codecs = {IMAGE_CODEC: dict(htj2k()), **codecs}
+    return codecs
+
+
+FRAME_CODECS = _codecs()
 
 
 def frame_codec(frame_shape: tuple[int, ...], preferred: str | None = None) -> str:
     """The codec for frames of ``frame_shape`` (H, W, C): ``preferred`` (a FRAME_CODECS
     name) or the image codec, which takes 1 or 3 channels only (else the fast one)."""
-    if preferred is not None and preferred not in FRAME_CODECS:
-        raise ValueError(f"frame codec must be one of {', '.join(FRAME_CODECS)}, got {preferred!r}")
+    if preferred is not None and preferred not in CODEC_FILTER_IDS:
+        raise ValueError(f"frame codec must be one of {', '.join(CODEC_FILTER_IDS)}, got {preferred!r}")
     codec = preferred or IMAGE_CODEC
-    if codec == IMAGE_CODEC and (len(frame_shape) != 3 or frame_shape[2] not in (1, 3)):
+    if codec not in FRAME_CODECS or (codec == IMAGE_CODEC and (len(frame_shape) != 3 or frame_shape[2] not in (1, 3))):
         return FAST_CODEC
     return codec

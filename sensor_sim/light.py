@@ -73,6 +73,9 @@ def _table_coordinates(gx: np.ndarray, gy: np.ndarray, bins: int) -> tuple[np.nd
     return u, v
 
 
+REMAP_MAX_SIDE = 32767  # cv2.remap's limit on a map's sides (SHRT_MAX)
+
+
 @functools.cache
 def remap_interpolates_exactly() -> bool:
     """True when this OpenCV's bilinear ``cv2.remap`` of a float32 table at float32 coordinates
@@ -228,7 +231,7 @@ class LightModel:
         lookup, three times faster: the same bilinear formula, to float32 rounding (the
         frames' grey levels differ from the gather's in a few pixels in a million, by 1;
         ``exact=True`` keeps the gather)."""
-        if not exact and remap_interpolates_exactly():
+        if not exact and gx.ndim == 2 and max(gx.shape) < REMAP_MAX_SIDE and remap_interpolates_exactly():
             u, v = _table_coordinates(gx, gy, self.bins)
             u, v = u.astype(np.float32, copy=False), v.astype(np.float32, copy=False)
             planes = np.empty((3, *u.shape), np.float32)

@@ -48,9 +48,11 @@ class NormalSolution:
 
     @property
     def displacement_mm(self) -> np.ndarray:
-        if callable(self.displacement):
-            self.displacement = self.displacement()
-        return self.displacement
+        d = self.displacement  # read once: another thread may resolve it meanwhile
+        if callable(d):
+            d = d()
+            self.displacement = d
+        return d
 
 
 def solve_normal(

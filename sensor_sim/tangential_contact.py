@@ -52,9 +52,11 @@ class TangentialSolution:
         return self._displacement()[1]
 
     def _displacement(self) -> tuple[np.ndarray, np.ndarray]:
-        if callable(self.displacement):
-            self.displacement = self.displacement()
-        return self.displacement
+        d = self.displacement  # read once: another thread may resolve it meanwhile
+        if callable(d):
+            d = d()
+            self.displacement = d
+        return d
 
 
 def _sum(a: np.ndarray) -> float:

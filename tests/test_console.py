@@ -29,7 +29,19 @@ from cli.console.server import serving_in_thread
 
 pytestmark = pytest.mark.slow
 
-IMG = Path(os.environ.get("TACTILE_SCREENSHOTS") or tempfile.mkdtemp(prefix="console-screenshots-"))
+_SHOTS: list[Path] = []  # the screenshot folder, made at the first screenshot
+
+
+def screenshot(browser, name: str) -> None:
+    """Save the page into $TACTILE_SCREENSHOTS (made if missing) or a temporary folder."""
+    if not _SHOTS:
+        where = os.environ.get("TACTILE_SCREENSHOTS")
+        folder = Path(where).resolve() if where else Path(tempfile.mkdtemp(prefix="console-screenshots-"))
+        folder.mkdir(parents=True, exist_ok=True)
+        _SHOTS.append(folder)
+    assert browser.save_screenshot(str(_SHOTS[0] / name)), f"screenshot {name} not saved in {_SHOTS[0]}"
+
+
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 CHROMEDRIVER = shutil.which("chromedriver")
 WAIT_S = 60.0  # generous: two shared cores, a contact solve per frame
@@ -192,7 +204,7 @@ def test_jog_moves_the_stage_and_the_force_trace_responds(browser):
     # the trace holds the press: its Fz series reaches the value shown
     trace = page(browser, "window.rigConsole.liveFz()")
     assert max(abs(v - fz0) for v in trace) > 0.5
-    browser.save_screenshot(str(IMG / "console.png"))
+    screenshot(browser, "console.png")
     jog_and_wait(browser, "z", "plus", "1")
     wait_for(
         browser,
@@ -246,7 +258,7 @@ def test_marker_flow_arrows_follow_the_shear(browser):
         sheared[sign] = flow
         assert overlay_green_pixels(browser) > 50  # the arrows are on the canvas
         if sign == 1:
-            browser.save_screenshot(str(IMG / "console_markers.png"))
+            screenshot(browser, "console_markers.png")
     assert sheared[1]["meanDx"] * sheared[-1]["meanDx"] < 0, sheared  # the arrows turned with the shear
     jog_and_wait(browser, "x", "plus", "0.1")
     jog_and_wait(browser, "x", "plus", "0.1")
@@ -329,7 +341,7 @@ def test_run_browser_shows_frame_n_and_its_wrench(browser, runs_dir):
     rgba = np.asarray(shown, dtype=np.uint8).reshape(frame.shape[0], frame.shape[1], 4)
     assert np.array_equal(rgba[..., :3], frame[..., ::-1])  # the file is BGR, the page RGB (PNG: lossless)
     browser.execute_script("document.getElementById('browser').scrollIntoView()")
-    browser.save_screenshot(str(IMG / "run_browser.png"))
+    screenshot(browser, "run_browser.png")
 
 
 def test_off_loopback_every_request_needs_the_token(tmp_path):
@@ -419,7 +431,7 @@ def test_a_terminal_run_protocol_shows_live_in_the_progress_panel(browser, runs_
             seen.append(p)
             if not shot and p["frame"] >= n_frames // 3 and img_index:
                 browser.execute_script("window.scrollTo(0, 0)")
-                browser.save_screenshot(str(IMG / "console_progress.png"))
+                screenshot(browser, "console_progress.png")
                 shot = True
         assert proc.wait(120) == 0, proc.stderr.read() if proc.stderr else ""
     finally:
@@ -475,7 +487,7 @@ def test_run_browser_marker_flow_against_the_reference(browser, runs_dir):
         flows[i] = page(browser, "window.rigConsole.runFlow")
     assert flows[24]["arrows"] > 20 and flows[24]["arrows"] > flows[0]["arrows"], flows
     browser.execute_script("document.getElementById('browser').scrollIntoView()")
-    browser.save_screenshot(str(IMG / "run_browser_markers.png"))
+    screenshot(browser, "run_browser_markers.png")
 
 
 def test_a_protocol_started_from_the_page_ends_interrupted_on_stop(browser, runs_dir):

@@ -290,3 +290,14 @@ def test_a_rounding_remap_is_not_used(monkeypatch, fields_by_kind):
             assert np.array_equal(new.render(fields), ref.render(fields))
     finally:
         remap_interpolates_exactly.cache_clear()
+
+
+def test_slopes_the_remap_cannot_take_use_the_gather():
+    """cv2.remap takes 2-D maps under 32,767 px a side: other slopes get the gather's numbers."""
+    light = default_profile().light
+    rng = np.random.default_rng(3)
+    for shape in ((2, 3, 4), (7,), (40_000, 1)):
+        gx, gy = (rng.normal(0, 0.4, shape).astype(np.float32) for _ in range(2))
+        got = light.change_planar(gx, gy)
+        assert got.shape == (3, *shape)
+        assert np.array_equal(got, light.change_planar(gx, gy, exact=True))

@@ -356,11 +356,14 @@ def test_old_files_without_checksums_stay_readable(tmp_path):
 
 
 def _raise_enospc_on_frames(monkeypatch) -> list:
-    """Make the writer's frame writes fail as on a full disk; returns the indices that failed."""
+    """Make the writer's frame writes fail as on a full disk, after the frames dataset has
+    grown by the frame (as HDF5 fails: the extent is set, the chunk never lands); returns
+    the indices that failed."""
     failed = []
 
     def full(self, frames, i, image):
         failed.append(i)
+        frames.id.set_extent((i + 1, *self._frame_shape))
         raise OSError(errno.ENOSPC, "No space left on device")
 
     monkeypatch.setattr(RunWriter, "_write_frame", full)

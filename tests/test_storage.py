@@ -6,6 +6,7 @@ import hashlib
 import subprocess
 import sys
 import textwrap
+from pathlib import Path
 
 import cv2
 import h5py
@@ -23,6 +24,7 @@ from dataset.interchange import export_run
 from dataset.runs import check_run
 
 runner = CliRunner()
+ROOT = Path(__file__).resolve().parents[1]
 PHASES = ("approach", "press", "shear", "return", "twist", "untwist", "retract")
 SIZE = 64
 
@@ -189,3 +191,48 @@ def test_merge_keeps_the_runs_codec_and_frames(tmp_path, codec):
         assert frames_codec(f) == codec
         for i, j in enumerate([0, 1, 2, 0, 1]):
             np.testing.assert_array_equal(f[S.FRAMES][i], frame(j))
+
+
+def test_a_missing_codec_plugin_is_one_line_and_keeps_every_frame(tmp_path):
+    """Without the HTJ2K filter (an old or stripped hdf5plugin) reading or resuming a run must
+    say so in one line: the frames must not pass for frames that never reached the disk and
+    be trimmed away on resume."""
+    header = RunHeader("test", "# x", "", "sphere10mm", "", "rgb", 0.5, 1.0, 9, (0, 0, 0, 0), PHASES)
+    path = tmp_path / "run.h5"
+    w = RunWriter.create(path, header, (SIZE, SIZE, 3), frame(99), frame(98), codec=S.IMAGE_CODEC)
+    for i in range(3):
+        w.append(frame(i), **S.blank_row() | {S.CAPTURE_INDEX: i})
+    w.close()  # left "running": a resume would look for unfinished frames
+    code = textwrap.dedent(f"""
+        import sys, h5py
+        from acquisition.run_file import RunFileError, RunWriter, open_for_reading
+        h5py.h5z.unregister_filter({S.CODEC_FILTER_IDS[S.IMAGE_CODEC]})
+        for what in (open_for_reading, RunWriter.reopen):
+            try:
+                what(sys.argv[1])
+            except RunFileError as exc:
+                print(exc)
+            else:
+                print("opened")
+    """)
+    out = subprocess.run([sys.executable, "-c", code, str(path)], capture_output=True, text=True, cwd=ROOT)
+    lines = out.stdout.splitlines()
+    assert out.returncode == 0 and len(lines) == 2, out.stdout + out.stderr
+    for line in lines:
+        assert line.startswith(f"{path}: ") and "frames: stored with htj2k (HDF5 filter 32033)" in line
+        assert "cannot decode: install hdf5plugin 7.1 or later" in line
+    with open_for_reading(path) as f:  # every frame still there
+        assert f[S.FRAMES].shape[0] == 3
+        np.testing.assert_array_equal(f[S.FRAMES][2], frame(2))
+
+
+def test_frames_of_another_dtype_are_refused_before_anything_is_written(tmp_path):
+    path = write_run(tmp_path / "run.h5", n=2)
+    w = RunWriter.reopen(path)
+    with pytest.raises(RunFileError, match=r"frame dtype float64, the run's frames are uint8"):
+        w.append(frame(5).astype(float), **S.blank_row() | {S.CAPTURE_INDEX: 2})
+    w.append(frame(5), **S.blank_row() | {S.CAPTURE_INDEX: 2})
+    w.close()
+    with open_for_reading(path) as f:
+        assert f[S.FRAMES].shape[0] == 3
+        np.testing.assert_array_equal(f[S.FRAMES][2], frame(5))

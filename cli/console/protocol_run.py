@@ -113,7 +113,7 @@ def run_in_console(
 ):
     """Run ``protocol`` on ``rig`` into a new file in ``folder``; returns (path, RunResult)."""
     from acquisition.executor import Acquisition
-    from acquisition.schema import RIG_CONFIG_MARK
+    from acquisition.schema import FAST_CODEC, RIG_CONFIG_MARK
     from cli.console.run_progress import ProgressWriter
     from cli.protocol_cmds import check_new_run_path
     from protocols.plan import AXES, Plan
@@ -132,6 +132,8 @@ def run_in_console(
     else:
         rig_config = Path(cfg.path).read_text()
     header = {"rig_config": rig_config, "mm_per_px": mm_per_px}
+    if simulated is not None:  # the simulated camera's frames: the fast codec, as `rig run-protocol --sim`
+        header["frame_codec"] = FAST_CODEC
 
     def progress(p) -> None:
         sidecar.update(p)
