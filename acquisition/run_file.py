@@ -406,12 +406,7 @@ class RunWriter:
     def _write_frame(self, frames: h5py.Dataset, i: int, frame: np.ndarray) -> None:
         """``frames.resize(i + 1, axis=0); frames[i] = frame`` through h5py's low-level calls:
         the same bytes in the same chunk (``append`` has checked the frame's shape and dtype)."""
-        shape = self._frame_shape
-        data = np.ascontiguousarray(frame).reshape(1, *shape)
-        frames.id.set_extent((i + 1, *shape))
-        file = frames.id.get_space()
-        file.select_hyperslab((i, *(0,) * len(shape)), (1, *shape))
-        frames.id.write(self._frame_memory, file, data)
+        _append_rows(frames, i, np.ascontiguousarray(frame).reshape(1, *self._frame_shape), self._frame_memory)
 
     def _write_stream(self, stream: np.ndarray) -> None:
         """``self._stream[m:] = stream`` after growing it by ``len(stream)`` rows, through
@@ -425,10 +420,7 @@ class RunWriter:
         data = np.ascontiguousarray(stream, dtype=dtype)
         if data.shape[1:] != width:
             raise ValueError(f"{self.path}: {S.WRENCH_STREAM}: rows of shape {data.shape[1:]}, the field's are {width}")
-        d.id.set_extent((m + len(data), *width))
-        file = d.id.get_space()
-        file.select_hyperslab((m, *(0,) * len(width)), data.shape)
-        d.id.write(h5py.h5s.create_simple(data.shape), file, data)
+        _append_rows(d, m, data, h5py.h5s.create_simple(data.shape))
 
     def _write_row(self, name: str, d: h5py.Dataset, i: int, value) -> None:
         """``d[i] = value`` through h5py's low-level write: the same bytes in the same
@@ -514,6 +506,16 @@ class RunWriter:
                     ) from None
         finally:
             self.lock.release()
+
+
+def _append_rows(d: h5py.Dataset, at: int, data: np.ndarray, memory) -> None:
+    """``d.resize(at + len(data), axis=0); d[at:] = data`` through h5py's low-level calls
+    (``data`` C-contiguous in ``d``'s dtype, ``memory`` its dataspace): the same bytes in
+    the same chunks, without the high-level indexing."""
+    d.id.set_extent((at + len(data), *data.shape[1:]))
+    file = d.id.get_space()
+    file.select_hyperslab((at, *(0,) * (data.ndim - 1)), data.shape)
+    d.id.write(memory, file, data)
 
 
 def open_for_reading(path: str | Path) -> h5py.File:

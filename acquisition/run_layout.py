@@ -117,6 +117,12 @@ def layout_problems(f: h5py.File) -> list[str]:
     )
 
 
+def filter_ids(d: h5py.Dataset) -> list[int]:
+    """HDF5's ids of the filters ``d`` is stored with, in pipeline order."""
+    dcpl = d.id.get_create_plist()
+    return [dcpl.get_filter(i)[0] for i in range(dcpl.get_nfilters())]
+
+
 def frame_filter_problems(f: h5py.File) -> list[str]:
     """The frames' filters this installation cannot apply, in words (a codec's plugin missing:
     every frame would fail to read, which must not pass for frames that never reached the disk)."""
@@ -124,8 +130,7 @@ def frame_filter_problems(f: h5py.File) -> list[str]:
         d = f.get(S.FRAMES)
         if not isinstance(d, h5py.Dataset):
             return []
-        dcpl = d.id.get_create_plist()
-        ids = [dcpl.get_filter(i)[0] for i in range(dcpl.get_nfilters())]
+        ids = filter_ids(d)
     except (OSError, RuntimeError, KeyError, ValueError):
         return []  # a damaged header: field_problems names it
     names = {fid: name for name, fid in S.CODEC_FILTER_IDS.items()}

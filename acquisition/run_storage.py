@@ -18,6 +18,7 @@ import h5py
 
 from acquisition import schema as S
 from acquisition.hdf5_open import open_swmr_read
+from acquisition.run_layout import filter_ids
 
 ROW_BLOCK = 256  # per-row datasets grow in blocks; the frame count says how many rows are valid
 STREAM_BLOCK = 1024  # rows per chunk of a stream dataset: ~10 s of a 100 Hz gauge
@@ -38,8 +39,7 @@ def chunked(chunks: tuple[int, ...], *, codec: str | None = None) -> dict:
 def frames_codec(f: h5py.File) -> str | None:
     """The name (in the schema's CODEC_FILTER_IDS) of the codec ``f``'s frames are stored with;
     None when uncompressed (files before compression) or in a codec this version does not write."""
-    dcpl = f[S.FRAMES].id.get_create_plist()
-    ids = {dcpl.get_filter(i)[0] for i in range(dcpl.get_nfilters())}
+    ids = filter_ids(f[S.FRAMES])
     return next((name for name, fid in S.CODEC_FILTER_IDS.items() if fid in ids), None)
 
 

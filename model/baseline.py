@@ -36,9 +36,6 @@ class BaselineUnavailable(ValueError):
     pass
 
 
-RIG_CELLS = 96  # mechanics cells across the pad, as the simulated rig (rig/sim/rig_sim.py)
-
-
 def run_profile(run_path: str, attrs: dict, profile=None):
     """The SensorProfile for a run's physics render (see the module docstring); BaselineUnavailable
     when the run records a profile that cannot be found again."""
@@ -77,7 +74,7 @@ class ObjectRender:
         from objects.indenters import INDENTERS
         from sensor_sim.contact import SensorGeometry
         from sensor_sim.optics import Renderer
-        from sensor_sim.world_contact import ElastomerContact
+        from sensor_sim.world_contact import RIG_CELLS, ElastomerContact
 
         if obj not in INDENTERS:
             raise BaselineUnavailable(

@@ -308,8 +308,7 @@ def rfft2_padded(field: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
         return sfft.rfft2(field, s=shape, axes=(-2, -1), workers=1)
     padded = np.zeros((*field.shape[:-2], *shape), field.dtype)
     padded[..., :ny, :nx] = field
-    nd = padded.ndim
-    return _pocketfft.r2c(padded, (nd - 2, nd - 1), True, 0, None, 1)
+    return r2c_2d(padded)
 
 
 def irfft2_full(spectrum: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
@@ -321,8 +320,7 @@ def irfft2_full(spectrum: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
         or spectrum.shape[-2:] != (shape[0], shape[1] // 2 + 1)
     ):
         return sfft.irfft2(spectrum, s=shape, axes=(-2, -1), workers=1)
-    nd = spectrum.ndim
-    return _pocketfft.c2r(spectrum, (nd - 2, nd - 1), shape[1], False, 2, None, 1)
+    return c2r_2d(spectrum, shape)
 
 
 def direct_transforms() -> bool:

@@ -206,10 +206,7 @@ class LightModel:
 
     def change(self, gx: np.ndarray, gy: np.ndarray, background: np.ndarray) -> np.ndarray:
         """(H, W, 3) colour change for slopes (gx, gy) over ``background`` (H, W, 3)."""
-        delta = np.ascontiguousarray(np.moveaxis(self.change_planar(gx, gy), 0, -1))
-        if self.shading == "multiplicative":
-            delta *= background / np.asarray(self.reference_bgr, dtype=np.float32)
-        return delta
+        return np.ascontiguousarray(np.moveaxis(self.change_planar(gx, gy, self.shade_scale(background)), 0, -1))
 
     def shade_scale(self, background: np.ndarray) -> np.ndarray | None:
         """(3, H, W) factor ``change_planar`` applies for ``background`` (H, W, 3); None when

@@ -206,6 +206,7 @@ class ElastomerContact:
 
 
 RIG_TOL = 3e-3  # the simulated rig's solver tolerance (relative change of p and q per iteration)
+RIG_CELLS = 96  # the simulated rig's mechanics cells across the pad
 
 
 def rig_contact(
@@ -219,5 +220,5 @@ def rig_contact(
     the frame before (10 µm away), the wrench stays within 0.01 N and 0.2 N·mm of solves
     to 1e-5, under one count of the FT300's wire format, at two thirds of the solver's
     time at 1e-3 (docs/benchmarks.md, "Simulated run")."""
-    geometry = geometry or SensorGeometry(cells=96)
+    geometry = geometry or SensorGeometry(cells=RIG_CELLS)
     return ElastomerContact(indenter, gel, geometry, tol=RIG_TOL, tangential_tol=RIG_TOL)

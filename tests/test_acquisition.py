@@ -13,6 +13,7 @@ import pytest
 from acquisition import schema as S
 from acquisition.executor import Acquisition, ProtocolRefused
 from acquisition.run_file import open_for_reading
+from acquisition.run_layout import filter_ids
 from cli.simulated import monitor_interval_s, simulated_rig_for
 from protocols.plan import PHASES, Plan
 from protocols.spec import load_protocol, parse_protocol
@@ -79,8 +80,8 @@ def test_complete_run_is_synchronised_and_physical(quick, tmp_path):
         assert f.attrs[S.ATTR_MM_PER_PX] == pytest.approx(14.0 / 256)
         assert f[S.OBJECT_IMAGE].shape == (256, 256, 3) and f[S.REFERENCE_FRAME].shape == (256, 256, 3)
         assert "simulated rig" in f.attrs[S.ATTR_RIG_CONFIG]
-        dcpl = f[S.FRAMES].id.get_create_plist()  # the simulated rig's frames: the fast codec
-        assert dcpl.get_filter(0)[0] == S.FRAME_CODECS[S.FAST_CODEC]["compression"]
+        # the simulated rig's frames: the fast codec
+        assert filter_ids(f[S.FRAMES])[0] == S.FRAME_CODECS[S.FAST_CODEC]["compression"]
     assert final["z"] == pytest.approx(quick.approach_mm, abs=1e-3)  # retracted at the end
 
 

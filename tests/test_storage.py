@@ -18,6 +18,7 @@ from acquisition import run_compact
 from acquisition import schema as S
 from acquisition.run_compact import compact, frames_compressed
 from acquisition.run_file import RunFileError, RunHeader, RunLocked, RunWriter, open_for_reading
+from acquisition.run_layout import filter_ids
 from acquisition.writer_lock import WriterLock
 from cli.dataset_app import app as dataset_app
 from dataset.interchange import export_run
@@ -53,11 +54,6 @@ def write_run(path, n=12, *, compress=True, codec=None):
 
 def digest(path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()
-
-
-def filter_ids(d: h5py.Dataset) -> list[int]:
-    dcpl = d.id.get_create_plist()
-    return [dcpl.get_filter(i)[0] for i in range(dcpl.get_nfilters())]
 
 
 @pytest.mark.parametrize("codec", [None, *S.FRAME_CODECS])

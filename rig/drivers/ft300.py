@@ -70,15 +70,12 @@ def decode_stream_frame(frame: bytes) -> np.ndarray:
 
 def encode_stream_frame(values: np.ndarray) -> bytes:
     """The frame a sensor sends for ``values`` (N, N·mm); used by the simulator and tests."""
-    from rig.transport.crc import append_crc
-
-    counts = np.clip(np.round(np.asarray(values) / COUNTS_TO_UNITS), -32768, 32767).astype(int)
-    return append_crc(FRAME_HEADER + struct.pack("<6h", *counts))
+    return encode_stream_frames(np.asarray(values, dtype=np.float64).reshape(1, 6))[0]
 
 
 def encode_stream_frames(values: np.ndarray) -> list[bytes]:
-    """``encode_stream_frame`` of each row of ``values`` (n, 6): the same bytes, the
-    counts of all rows rounded in one numpy call (a simulator sends many per tick)."""
+    """The frames for each row of ``values`` (n, 6): counts rounded to the wire's units and
+    clipped to int16, little-endian, then the CRC (a simulator sends many per tick)."""
     from rig.transport.crc import append_crc
 
     counts = np.clip(np.round(np.asarray(values, dtype=np.float64) / COUNTS_TO_UNITS), -32768, 32767)

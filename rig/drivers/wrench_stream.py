@@ -101,17 +101,22 @@ class WrenchBuffer:
             return self._samples[-1] if self._samples else None
 
     def since(self, t_s: float) -> list[Wrench]:
-        """Samples stamped after ``t_s``, oldest first. Stamps never go back, so the scan
-        starts at the newest end and stops at the first older one: a reader emptying the
-        buffer between captures touches only what came since (not all 4096)."""
+        """Samples stamped after ``t_s``, oldest first: a reader emptying the buffer between
+        captures touches only what came since (``_first_after``)."""
         with self._cond:
-            out = []
-            for s in reversed(self._samples):
-                if s.t_s <= t_s:
-                    break
-                out.append(s)
-        out.reverse()
-        return out
+            i = self._first_after(t_s)
+            return [self._samples[k] for k in range(i, len(self._samples))]
+
+    def _first_after(self, t_s: float) -> int:
+        """Index of the first sample stamped after ``t_s`` (len when none), the lock held.
+        Stamps never go back, so the scan starts at the newest end and stops at the first
+        older one: a capture asks about the last moments, not all 4096."""
+        i = len(self._samples)
+        for s in reversed(self._samples):
+            if s.t_s <= t_s:
+                break
+            i -= 1
+        return i
 
     def wait_new(self, after_total: int, n: int, timeout_s: float) -> bool:
         """Block (real time, bounded) until ``n`` samples arrived after ``after_total``."""
@@ -128,15 +133,9 @@ class WrenchBuffer:
         with self._cond:
             if not self._samples:
                 raise LookupError("no samples")
-            # The first sample stamped after t_s, searched from the newest end (a capture asks
-            # about the last moments): bisect_right, so that among samples stamped exactly t_s
-            # (one burst) the newest wins.
+            # bisect_right: among samples stamped exactly t_s (one burst) the newest wins
             n = len(self._samples)
-            i = n
-            for s in reversed(self._samples):
-                if s.t_s <= t_s:
-                    break
-                i -= 1
+            i = self._first_after(t_s)
             if i == 0 or i == n:
                 s = self._samples[0] if i == 0 else self._samples[-1]
                 return s.as_array(), abs(s.t_s - t_s)

@@ -168,11 +168,9 @@ class SimServer:
         first). An armed stall is taken here, outside the lock and with ``serve_now``
         refusing meanwhile, so the stalled request is answered after the stall, in order."""
         with self._model_lock:
-            fd = self._master
-            if fd < 0 or not select.select([fd], [], [], 0)[0]:
+            data = self._read_waiting_locked()
+            if data is None:
                 return
-            data = os.read(fd, 65536)
-            self.bytes_in += len(data)
             stall_s = self.faults.take_stall()
             if not stall_s:
                 self._feed_locked(data)
@@ -184,6 +182,16 @@ class SimServer:
             with self._model_lock:
                 self._stalled = False
                 self._feed_locked(data)
+
+    def _read_waiting_locked(self) -> bytes | None:
+        """What the host has written to the pty, read without waiting; None when nothing is
+        there or the pty is closed (the model lock held)."""
+        fd = self._master
+        if fd < 0 or not select.select([fd], [], [], 0)[0]:
+            return None
+        data = os.read(fd, 65536)
+        self.bytes_in += len(data)
+        return data
 
     def _feed_locked(self, data: bytes) -> None:
         """Feed the host's bytes to the model and send what is due (the model lock held)."""
@@ -206,11 +214,9 @@ class SimServer:
         if not self.inline or self._stalled or self.faults.stall_armed:
             return False
         with self._model_lock:
-            fd = self._master
-            if self._stalled or fd < 0 or not select.select([fd], [], [], 0)[0]:
+            data = None if self._stalled else self._read_waiting_locked()
+            if data is None:
                 return False
-            data = os.read(fd, 65536)
-            self.bytes_in += len(data)
             self._feed_locked(data)
         return True
 

@@ -20,7 +20,7 @@ from rig.sim.pr_drive_sim import PrDriveSim
 from rig.sim.served import ServedDevice
 from rig.sim.world import SimWorld, WorldSpec
 from rig.sim.zaber_sim import ZaberChainSim, ZaberDeviceSim
-from sensor_sim.world_contact import rig_contact
+from sensor_sim.world_contact import RIG_CELLS, rig_contact
 
 ZABER_MICROSTEP_MM = 0.047625e-3  # a common Zaber linear-stage microstep
 THETA_PULSES_PER_REV = 10000
@@ -35,7 +35,6 @@ DEVICE_TIMEOUT_S = 0.3
 # loaded 2-core machine a 0.3 s write timeout was seen to trip mid-run against a served rig.
 SERVED_DEVICE_TIMEOUT_S = 1.0
 CAMERA_SIZE_PX = 256  # the simulated camera renders a square gel pad (a profile sets its own)
-RIG_CELLS = 96  # mechanics cells across the pad, as rig_contact (sensor_sim/world_contact.py)
 
 
 class SimulatedRig:
