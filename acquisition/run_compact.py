@@ -5,7 +5,9 @@ one sphere10mm run. ``compact`` copies such a file into ``RUN.h5.compacting-PID`
 it, every growing dataset created as the writer creates it (``run_storage.chunked``:
 compressed frames, Fletcher-32 everywhere), then reads the copy back and compares it
 with the original frame by frame, row by row, dataset by dataset and attribute by
-attribute, and only then renames it over the original. It holds the run's writer lock
+attribute, and only then renames it over the original. The original is verified whole first
+(acquisition/run_reader.py: schema, rows, every frame's checksum), compressed already or not, so
+``compact`` also tells a damaged file from a sound one. It holds the run's writer lock
 throughout, so a run being written (or resumed) is refused and cannot start meanwhile.
 Any failure removes the copy and leaves the original as it was.
 """
@@ -20,8 +22,7 @@ import h5py
 import numpy as np
 
 from acquisition import schema as S
-from acquisition.run_file import open_for_reading
-from acquisition.run_layout import layout_problems
+from acquisition.run_reader import RunReader
 from acquisition.run_storage import (
     ROW_BLOCK,
     STREAM_BLOCK,
@@ -131,11 +132,10 @@ def compact(path: str | Path) -> Compacted:
     try:
         remove_stale_temps(path)
         before = path.stat().st_size if path.exists() else 0
-        with open_for_reading(path) as src:
-            problems = layout_problems(src)
-            if problems:
-                raise RunFileError(f"{path}: cannot compact a malformed run file: {'; '.join(problems)}")
-            n = src[S.FRAMES].shape[0]
+        with RunReader.open(path) as run:  # verified whole first: damage is refused, never copied
+            run.verify_frames()
+            src = run.f
+            n = run.n
             if frames_compressed(src):
                 return Compacted(path, n, before, before, False)
             tmp = temp_path(path, ".compacting-")

@@ -3,7 +3,7 @@ atomic replacement.
 
 Every growing dataset is created with ``chunked``; a new or rewritten file is written
 under a temporary name beside the run (``RUN.h5.creating-PID``, ``.recovering-PID``,
-``.compacting-PID``), fsynced, and renamed over the run only when complete, so a crash
+``.compacting-PID``, ``.writing-PID``), fsynced, and renamed over the run only when complete, so a crash
 never leaves a half-written file at the run's name. Call the helpers that touch a run's
 temp files only while holding its writer lock (acquisition/writer_lock.py).
 """
@@ -22,7 +22,8 @@ from acquisition.run_layout import filter_ids
 
 ROW_BLOCK = 256  # per-row datasets grow in blocks; the frame count says how many rows are valid
 STREAM_BLOCK = 1024  # rows per chunk of a stream dataset: ~10 s of a 100 Hz gauge
-TEMP_MARKS = (".creating-", ".recovering-", ".compacting-")  # RUN.h5.creating-PID, ...
+# RUN.h5.creating-PID, ...; a whole run written by merge or import (acquisition/whole_run.py) too
+TEMP_MARKS = (".creating-", ".recovering-", ".compacting-", ".writing-")
 
 
 def chunked(chunks: tuple[int, ...], *, codec: str | None = None) -> dict:

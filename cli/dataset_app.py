@@ -34,6 +34,10 @@ def friendly(fn):
         except (ToolError, FileNotFoundError, ValueError, KeyError) as exc:
             typer.secho(f"error: {exc}", fg=typer.colors.RED, err=True)
             raise typer.Exit(1) from None
+        except OSError as exc:  # a read-only or full disk, a folder we may not write: named, never a traceback
+            where = f"{exc.filename}: " if exc.filename else ""
+            typer.secho(f"error: {where}{exc.strerror or exc}", fg=typer.colors.RED, err=True)
+            raise typer.Exit(1) from None
 
     return wrapper
 
@@ -54,6 +58,7 @@ def info(paths: Paths):
             f"sensor {s.sensor_kind}, {s.duration_s:.0f} s, {s.mm_per_px:.4f} mm/px"
         )
         typer.echo(f"  pose: {POSE_DESCRIPTION}")
+        typer.echo(f"  sensor profile: {s.profile_line}")
         if s.imported:
             typer.echo(f"  imported from {s.imported}")
         typer.echo(
@@ -119,7 +124,9 @@ def split(
         ),
     ] = None,
 ):
-    """Split runs deterministically; wrench statistics come from the training part only."""
+    """Split runs deterministically; wrench statistics come from the training part only. Every run file is
+    verified whole first (schema, rows, every frame's checksum) and its identity recorded, so that train and
+    evaluate refuse a file changed since."""
     from dataset.split import make_split
 
     held = [name for name in (hold_out or "").split(",") if name.strip()]
@@ -144,7 +151,8 @@ def split(
 @app.command()
 @friendly
 def merge(paths: Paths, out: Annotated[Path, typer.Option(help="The merged run file to write; must not exist.")]):
-    """Merge runs of one object, sensor and frame size into one file (each frame keeps its source)."""
+    """Merge runs of one object, sensor, profile, scale and frame size into one file that validates: every
+    source verified first, time offset per source so it keeps increasing (docs/dataset.md)."""
     from dataset.merge import merge_runs
 
     typer.echo(f"{out}: {merge_runs(paths, out)} frames from {len(paths)} run(s)")
@@ -154,9 +162,12 @@ def merge(paths: Paths, out: Annotated[Path, typer.Option(help="The merged run f
 @friendly
 def export(
     path: Annotated[Path, typer.Argument(help="A run file.")],
-    out: Annotated[Path, typer.Option(help="Folder for frames/*.png, frames.csv, object.png, run.json.")],
+    out: Annotated[
+        Path, typer.Option(help="A new folder for frames/*.png, frames.csv, object.png, run.json; must not exist.")
+    ],
 ):
-    """Export a run to PNG frames and a CSV of wrenches and poses (for people who don't use HDF5)."""
+    """Export a run to PNG frames and a CSV of wrenches and poses (for people who don't use HDF5); the run is
+    verified whole first and the folder appears only once complete."""
     from dataset.interchange import export_run
 
     typer.echo(f"{out}: {export_run(path, out)} frames")
@@ -219,7 +230,7 @@ def import_(
         Optional[Path],
         typer.Option(
             help="The sensor's profile TOML (rig sensor calibrate); recorded in the run file like a run's. "
-            "Default: none recorded."
+            "Default: the run file says it has none (physics renders of it then need --profile)."
         ),
     ] = None,
     crop: Annotated[bool, typer.Option("--crop", help="Non-square images: keep the centre square.")] = False,
@@ -232,6 +243,13 @@ def import_(
             help="Resize the square images to N x N px (mm per pixel scaled to match). Default: keep their size.",
             min=16,
             max=4096,
+        ),
+    ] = None,
+    ignore_columns: Annotated[
+        Optional[str],
+        typer.Option(
+            help="frames.csv columns to leave out, comma-separated (any other column the format does not know is "
+            "refused). Default: none."
         ),
     ] = None,
 ):
@@ -257,6 +275,8 @@ def import_(
         sensor=sensor,
         sensor_profile=record,
         squaring=Squaring("crop" if crop else "pad" if pad else None, size),
+        ignore_columns=tuple(c.strip() for c in (ignore_columns or "").split(",") if c.strip()),
+        say=typer.echo,
     )
     typer.echo(f"{out}: {frames} frames imported")
 
@@ -309,10 +329,10 @@ def view(
     port: Annotated[int, typer.Option(help="TCP port (0: any free port).", min=0, max=65535)] = 8766,
 ):
     """Open a run file in the console's run browser (frames, wrench, pose and phases over time)."""
+    from acquisition.run_reader import RunReader
     from cli.console.launch import run_console
 
-    if not path.is_file():
-        raise FileNotFoundError(f"{path}: no such file")
+    RunReader.open(path).close()  # verified first: a damaged or malformed file is one line, not a page of errors
     run_console(
         config=None, sim=False, live=False, host=host, port=port, runs=[path.parent], files=[path], say=typer.echo
     )

@@ -106,6 +106,15 @@ def train(
         Optional[str],
         typer.Option(help="cpu or cuda (default: cuda when available; under `accelerate launch`, each process's GPU)."),
     ] = None,
+    profile: Annotated[
+        Optional[Path],
+        typer.Option(
+            help="Sensor profile TOML of the physics conditioning (`rig sensor calibrate` writes one), for every run. "
+            "Default: the profile each run records; a run that records none is refused for physics conditioning "
+            "(never rendered through another sensor's profile).",
+            dir_okay=False,
+        ),
+    ] = None,
     threads: Threads = None,
 ):
     """Train the denoiser; progress shows the loss and images/s; checkpoints are safetensors.
@@ -120,7 +129,9 @@ def train(
     from model.config_file import load_model_file
     from model.threads import set_threads
     from model.trainer import TrainConfig
+    from sensor_sim.profile import load_profile
 
+    sensor = load_profile(profile) if profile is not None else None  # a bad file: ProfileError, one line
     if config is not None:
         model_cfg, train_fields = load_model_file(config, preset)
     else:
@@ -136,7 +147,7 @@ def train(
         if v is not None
     }
     if conditioning is None and not _names_conditioning(config):
-        model_over["conditioning"], best_target = _default_conditioning(data)
+        model_over["conditioning"], best_target = _default_conditioning(data, sensor)
         if target is None and not _names_key(config, "target"):
             model_over["target"] = best_target
     if model_over:
@@ -152,7 +163,7 @@ def train(
     }
     cfg = TrainConfig(**{**train_fields, **{k: v for k, v in given.items() if v is not None}})
     threads_line = set_threads(threads)  # before anything runs; said once the run is set up (one-line errors)
-    trainer = build(model_cfg, cfg, data, out, device=device, log=typer.echo)
+    trainer = build(model_cfg, cfg, data, out, device=device, log=typer.echo, profile=sensor)
     say = typer.echo if trainer.is_main else (lambda line: None)
     say(threads_line)
     if resume:
@@ -186,10 +197,11 @@ def _names_key(config: Path | None, key: str) -> bool:
         return False  # load_model_file reports the bad file in one line
 
 
-def _default_conditioning(split: Path) -> tuple[str, str]:
+def _default_conditioning(split: Path, profile=None) -> tuple[str, str]:
     """The measured best conditioning and target for the split's sensor kind (model/config.py);
     plane+embedding and the frame, said in a line, where the best is physics and the simulator
-    cannot render the split's runs."""
+    cannot render the split's runs (an object it does not know, a run without a sensor profile
+    and no --profile)."""
     from dataset.split import load_split
     from model.config import ModelConfig, default_conditioning, default_target
     from model.physics_condition import PhysicsUnavailable, split_spec
@@ -200,7 +212,7 @@ def _default_conditioning(split: Path) -> tuple[str, str]:
     best = default_conditioning(kind)
     if ModelConfig(conditioning=best).uses_physics:
         try:
-            split_spec(split)
+            split_spec(split, profile)
         except PhysicsUnavailable as exc:
             typer.echo(f"conditioning plane+embedding, not the default {best}: {exc}")
             return "plane+embedding", "frame"
@@ -210,13 +222,21 @@ def _default_conditioning(split: Path) -> tuple[str, str]:
 generate_app = typer.Typer(add_completion=False)
 
 
-def _numbers(text: str, n: int, what: str) -> list[float]:
+def _numbers(text: str, n: int, what: str, limits: list[tuple[float, str]]) -> list[float]:
+    """``n`` finite comma-separated numbers, each within ±its limit (``limits``: (bound, unit) per value)."""
+    import math
+
     try:
         values = [float(v) for v in text.split(",")]
     except ValueError:
         raise typer.BadParameter(f"{what}: expected {n} comma-separated numbers, got {text!r}") from None
     if len(values) != n:
         raise typer.BadParameter(f"{what}: expected {n} comma-separated numbers, got {len(values)} in {text!r}")
+    for k, (v, (bound, unit)) in enumerate(zip(values, limits)):
+        if not math.isfinite(v) or abs(v) > bound:
+            raise typer.BadParameter(
+                f"{what}: value {k + 1} is {v:g}; expected a finite number within ±{bound:g} {unit}"
+            )
     return values
 
 
@@ -281,6 +301,16 @@ def generate(
     from model.threads import set_threads
 
     set_threads(threads)  # the output stays the frame's line (or one error line)
+    if split is None:  # the options checked before the model loads
+        from dataset.import_checks import FORCE_N, POSE_LIMIT, TORQUE_NMM
+
+        if object_image is None or wrench is None:
+            raise typer.BadParameter("give --object and --wrench, or --split")
+        w = _numbers(wrench, 6, "--wrench", [(FORCE_N, "N")] * 3 + [(TORQUE_NMM, "N·mm")] * 3)
+        four = pose.count(",") == 3
+        p = _numbers(
+            pose, 4 if four else 3, "--pose", [(POSE_LIMIT, "mm")] * (3 if four else 2) + [(POSE_LIMIT, "deg")]
+        )
     model = TrainedModel.load(checkpoint, _device(device))
     if split is not None:
         written = model.generate_split(
@@ -288,10 +318,7 @@ def generate(
         )
         typer.echo(f"{out}: {written} frames (PNG, named RUN-FRAME.png) and index.csv")
         return
-    if object_image is None or wrench is None:
-        raise typer.BadParameter("give --object and --wrench, or --split")
-    w = _numbers(wrench, 6, "--wrench")
-    p = _numbers(pose, 4 if pose.count(",") == 3 else 3, "--pose")
+    assert object_image is not None  # checked above
     img = _object_image(object_image, model.frame_px, model.mm_per_px)
     frame = model.generate(
         img,
@@ -335,12 +362,10 @@ def _object_image(source: str, frame_px: int, mm_per_px: float):
     path = Path(source)
     if path.suffix.lower() in (".h5", ".hdf5"):
         from acquisition import schema as S
-        from acquisition.run_file import open_for_reading
+        from acquisition.run_reader import RunReader
 
-        with open_for_reading(path) as f:
-            if S.OBJECT_IMAGE not in f:
-                raise ValueError(f"{path}: has no {S.OBJECT_IMAGE} dataset")
-            return f[S.OBJECT_IMAGE][()]
+        with RunReader.open(path) as f:
+            return f.image(S.OBJECT_IMAGE)
     if path.suffix:
         img = cv2.imread(str(path), cv2.IMREAD_COLOR)
         if img is None:
@@ -360,10 +385,10 @@ def _object_name(source: str) -> str:
     path = Path(source)
     if path.suffix.lower() in (".h5", ".hdf5"):
         from acquisition import schema as S
-        from acquisition.run_file import open_for_reading
+        from acquisition.run_reader import RunReader
 
-        with open_for_reading(path) as f:
-            return str(f.attrs.get(S.ATTR_OBJECT, ""))
+        with RunReader.open(path) as f:
+            return f.text(S.ATTR_OBJECT)
     if path.suffix:
         raise ValueError(
             f"--object {path}: this model is conditioned on the physics render; give a library object name or a "
@@ -442,7 +467,8 @@ def evaluate(
         Optional[Path],
         typer.Option(
             help="Sensor profile TOML for the physics-render row (`rig sensor calibrate` writes one). Default: the "
-            "profile each run file records (found again by its content hash), else the shipped GelSight Mini.",
+            "profile each run file records (found again by its content hash); a run that records none is refused "
+            "(give this, or --no-baseline): its sensor is never guessed.",
             dir_okay=False,
         ),
     ] = None,

@@ -105,6 +105,7 @@ def calibrate(
     import cv2
 
     from cli.sensor_inputs import from_folder, from_run
+    from common.errors import ToolError
     from sensor_sim.calibration import CalibrationError, fit_optics
     from sensor_sim.calibration_report import contact_sheet, estimate_noise_std, press_scores, profile_from_fit
     from sensor_sim.profile import ProfileError, load_profile, save_profile
@@ -151,7 +152,7 @@ def calibrate(
         load_profile(written)  # what was written is what every command will read
         if not cv2.imwrite(str(sheet), contact_sheet(inputs.background, inputs.presses, fit, scale)):
             _fail(f"--sheet {sheet}: cannot write the image")
-    except (CalibrationError, ProfileError, ValueError, OSError) as exc:
+    except (CalibrationError, ProfileError, ToolError, ValueError, OSError) as exc:  # a bad run file: RunFileError
         _fail(str(exc))
     typer.echo(f"fitted {len(scores)} presses in {fit_s:.1f} s: blur {fit.light.blur_mm:g} mm, noise {noise:g}")
     typer.echo("")

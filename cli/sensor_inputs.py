@@ -107,17 +107,16 @@ def from_folder(folder: Path, ball_radius_mm: float | None, background: Path | N
 def from_run(path: Path, count: int, ball_radius_mm: float | None) -> PressSet:
     """``count`` press frames of a run file, spread over depth (see the module docstring)."""
     from acquisition import schema as S
-    from acquisition.run_file import open_for_reading
-    from acquisition.run_layout import phase_names
+    from acquisition.run_reader import RunReader
     from objects.indenters import INDENTERS, get_indenter
     from sensor_sim.calibration import Press
 
-    with open_for_reading(path) as f:
-        obj = str(f.attrs.get(S.ATTR_OBJECT, ""))
-        mm_per_px = float(f.attrs.get(S.ATTR_MM_PER_PX, float("nan")))
-        background = f[S.REFERENCE_FRAME][()]
-        poses = f[S.POSE_MEASURED][()]
-        phases = phase_names(f, f[S.PHASE_INDEX][()])
+    with RunReader.open(path) as f:  # verified: a damaged or malformed file is one RunFileError line
+        obj = f.text(S.ATTR_OBJECT)
+        mm_per_px = f.number(S.ATTR_MM_PER_PX)
+        background = f.image(S.REFERENCE_FRAME)
+        poses = f.rows[S.POSE_MEASURED]
+        phases = [f.phases[int(k)] for k in f.rows[S.PHASE_INDEX]]
         if ball_radius_mm is None:
             if not (obj.startswith("sphere") and obj in INDENTERS):
                 raise ValueError(f"{path}: object {obj!r} is not a library sphere: pass --ball-radius-mm")
@@ -133,7 +132,7 @@ def from_run(path: Path, count: int, ball_radius_mm: float | None) -> PressSet:
         chosen = sorted({int(ok[np.argmin(np.abs(depth[ok] - t))]) for t in targets})
         presses = [
             Press(
-                f[S.FRAMES][k],
+                f.frame(k),
                 float(ball_radius_mm),
                 depth_mm=float(depth[k]),
                 name=f"frame {k} ({depth[k]:.2f} mm)",

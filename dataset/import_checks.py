@@ -1,7 +1,12 @@
 """The import folder's format and its checks: run.json key by key, frames.csv row by row.
 
-Everything here runs before a run file is created, so a refused import writes nothing. Each
-error names the file, the row and column (or the run.json key) and the value.
+Everything here runs before a run file is created, and the run file itself is written whole or
+not at all (acquisition/whole_run.py), so a refused import writes nothing. Each error names the
+file, the row and column (or the run.json key) and the value. frames.csv is strict: read with or
+without a byte-order mark, every column known (``file``, the columns of the run-file table) or
+named in ``--ignore-columns``, every row with a cell for every column and none empty. A column
+absent from the header altogether takes the default the format documents (docs/dataset.md),
+and the import says which.
 """
 
 from __future__ import annotations
@@ -65,7 +70,7 @@ def read_meta(folder: Path) -> dict:
     if not path.exists():
         return {}
     try:
-        meta = json.loads(path.read_text())
+        meta = json.loads(path.read_text(encoding="utf-8-sig"))
     except (ValueError, UnicodeDecodeError) as exc:
         raise ConfigError(str(path), "-", f"not valid JSON: {exc}") from None
     if not isinstance(meta, dict):
@@ -133,11 +138,15 @@ def frame_path(folder: Path, table: Path, i: int, name: str | None) -> Path:
 
 
 def number(table: Path, row: dict, col: str, i: int, default=None, *, low=None, high=None, integer=False):
-    value = row.get(col, "")
-    if value in ("", None):
+    """Row ``i``'s cell in column ``col``, checked; ``default`` only when the table has no such
+    column at all (an empty cell in a column it has is an error: nothing is filled in per row)."""
+    if col not in row:
         if default is None:
-            raise RunFileError(f"{table}: row {i + 2}, column {col} is empty")
+            raise RunFileError(f"{table}: no column {col} (required)")
         return default
+    value = row[col]
+    if value in ("", None):
+        raise RunFileError(f"{table}: row {i + 2}, column {col} is empty; every row needs a value in every column")
     try:
         parsed = float(value)
     except ValueError:
@@ -177,7 +186,11 @@ def read_rows(
     (dataset/pose_convention.py: the folder's convention brought to the run file's)."""
     checked = []
     for i, row in enumerate(rows):
-        phase = row.get("phase") or "press"
+        phase = row.get("phase", "press")  # a table without the column: press (docs/dataset.md)
+        if not phase:
+            raise ConfigError(
+                str(table), f"row {i + 2}, column phase", "is empty; expected one of " + ", ".join(phases)
+            )
         if phase not in phases:
             raise ConfigError(
                 str(table),
@@ -185,6 +198,14 @@ def read_rows(
                 f"unknown phase {phase!r}; expected one of {', '.join(phases)}",
             )
         values: dict = {S.PHASE_INDEX: phases.index(phase), S.CAPTURE_INDEX: i}
+        if S.CAPTURE_INDEX in row:  # the imported file's grid is the row number: a column must say the same
+            given = number(table, row, S.CAPTURE_INDEX, i, integer=True)
+            if given != i:
+                raise ConfigError(
+                    str(table),
+                    f"row {i + 2}, column {S.CAPTURE_INDEX}",
+                    f"is {given:g}, expected {i} (the row's number)",
+                )
         defaults = {S.T_FRAME: float(i), S.T_CAPTURE: float(i) / capture_hz, S.LEVEL: 0.0}
         for field in csv_fields():
             if field.path in (S.PHASE_INDEX, *DERIVED):
@@ -205,15 +226,10 @@ def read_stream(folder: Path) -> np.ndarray | None:
     path = folder / STREAM_CSV
     if not path.exists():
         return None
-    try:
-        with open(path, newline="") as fh:
-            reader = csv.DictReader(fh)
-            missing = [c for c in STREAM_COLS if c not in (reader.fieldnames or [])]
-            if missing:
-                raise RunFileError(f"{path}: missing column(s) {', '.join(missing)}")
-            rows = list(reader)
-    except (UnicodeDecodeError, csv.Error) as exc:
-        raise RunFileError(f"{path}: not a readable CSV table ({exc})") from None
+    header, rows = _strict_rows(path, STREAM_COLS, ())
+    missing = [c for c in STREAM_COLS if c not in header]
+    if missing:
+        raise RunFileError(f"{path}: missing column(s) {', '.join(missing)}")
     limits = [(0.0, T_FRAME_S), *BOUNDS[S.WRENCH]]
     out = np.array(
         [
@@ -228,21 +244,91 @@ def read_stream(folder: Path) -> np.ndarray | None:
     return out
 
 
-def read_table(folder: Path) -> tuple[Path, list[dict]]:
-    """frames.csv and its rows, with the columns an import needs (the file, the wrench, the measured pose)."""
+def known_columns() -> tuple[str, ...]:
+    """Every column frames.csv may have: ``file`` and the columns of the run-file table's per-frame fields."""
+    return ("file", *(c for f in csv_fields() for c in S.columns_of(f)))
+
+
+def _strict_rows(path: Path, known: tuple[str, ...], ignore: tuple[str, ...]) -> tuple[list[str], list[dict]]:
+    """(header, rows) of a CSV table (UTF-8, with or without a byte-order mark), strictly: no column
+    outside ``known`` unless in ``ignore`` (then dropped), no column twice, every row with exactly a
+    cell per column."""
+    try:
+        with open(path, newline="", encoding="utf-8-sig") as fh:
+            reader = csv.reader(fh)
+            header = next(reader, None)
+            if header is None:
+                raise RunFileError(f"{path}: empty (expected a header row of column names)")
+            header = [c.strip() for c in header]
+            table = [(i, cells) for i, cells in enumerate(reader) if cells]
+    except (UnicodeDecodeError, csv.Error) as exc:
+        raise RunFileError(f"{path}: not a readable UTF-8 CSV table ({exc})") from None
+    twice = sorted({c for c in header if header.count(c) > 1})
+    if twice:
+        raise RunFileError(f"{path}: column(s) {', '.join(twice)} appear more than once in the header")
+    not_there = [c for c in ignore if c not in header]
+    if not_there:
+        raise RunFileError(
+            f"{path}: --ignore-columns {', '.join(not_there)}: no such column (it has {', '.join(header)})"
+        )
+    unknown = [c for c in header if c not in known and c not in ignore]
+    if unknown:
+        raise RunFileError(
+            f"{path}: unknown column(s) {', '.join(unknown)}; expected only {', '.join(known)} "
+            "(docs/dataset.md), or name them in --ignore-columns to import without them"
+        )
+    rows = []
+    for i, cells in table:
+        if len(cells) != len(header):
+            missing = header[len(cells) :]
+            detail = f"missing {', '.join(missing)}" if missing else f"{len(cells) - len(header)} extra"
+            raise RunFileError(
+                f"{path}: row {i + 2} has {len(cells)} cells, the header {len(header)} ({detail}); "
+                "every row needs a cell for every column"
+            )
+        rows.append({c: v for c, v in zip(header, cells) if c not in ignore})
+    return [c for c in header if c not in ignore], rows
+
+
+def absent_columns(header: list[str]) -> list[str]:
+    """The optional per-frame fields frames.csv has no column for, each with the default it takes."""
+    defaults = {
+        S.T_FRAME: "the row number (s)",
+        S.T_CAPTURE: "row number / capture_hz",
+        S.POSE_COMMANDED: "the measured pose",
+        S.PHASE_INDEX: "press",
+        S.LEVEL: "0",
+    }
+    out = []
+    for f in csv_fields():
+        if f.path in REQUIRED or f.path in DERIVED or any(c in header for c in S.columns_of(f)):
+            continue
+        out.append(
+            f"{'/'.join(S.columns_of(f)) if len(S.columns_of(f)) < 3 else S.columns_of(f)[0] + '…'} = "
+            f"{defaults.get(f.path, f'{f.fill:g} (the table fill)')}"
+        )
+    return out
+
+
+def read_table(folder: Path, ignore: tuple[str, ...] = ()) -> tuple[Path, list[str], list[dict]]:
+    """frames.csv: its header (without ``ignore``d columns) and rows, strictly (``_strict_rows``),
+    with the columns an import needs (the file, the wrench, the measured pose)."""
     table = folder / "frames.csv"
     if not table.exists():
         raise RunFileError(f"{folder}: no frames.csv (see docs/dataset.md for the folder format)")
-    try:
-        with open(table, newline="") as fh:
-            reader = csv.DictReader(fh)
-            need = ("file", *(c for p in REQUIRED for c in S.columns_of(FIELDS[p])))
-            missing = [c for c in need if c not in (reader.fieldnames or [])]
-            if missing:
-                raise RunFileError(f"{table}: missing column(s) {', '.join(missing)}")
-            rows = list(reader)
-    except (UnicodeDecodeError, csv.Error) as exc:
-        raise RunFileError(f"{table}: not a readable CSV table ({exc})") from None
+    header, rows = _strict_rows(table, known_columns(), ignore)
+    need = ("file", *(c for p in REQUIRED for c in S.columns_of(FIELDS[p])))
+    missing = [c for c in need if c not in header]
+    if missing:
+        raise RunFileError(f"{table}: missing column(s) {', '.join(missing)}")
+    for f in csv_fields():
+        cols = S.columns_of(f)
+        have = [c for c in cols if c in header]
+        if have and len(have) < len(cols):
+            raise RunFileError(
+                f"{table}: has {', '.join(have)} but not {', '.join(c for c in cols if c not in header)}; "
+                f"give all of {f.path}'s columns or none"
+            )
     if not rows:
         raise RunFileError(f"{table}: no rows")
-    return table, rows
+    return table, header, rows

@@ -27,19 +27,24 @@ from __future__ import annotations
 
 import csv
 import json
+import os
+import shutil
 from pathlib import Path
 
 import cv2
 import numpy as np
 
 from acquisition import schema as S
-from acquisition.run_file import RunFileError, RunHeader, RunWriter
-from acquisition.run_layout import decode_phases, phase_names
+from acquisition.run_reader import RunReader
+from acquisition.run_writer import RunHeader
+from acquisition.whole_run import check_new_output, whole_run
+from acquisition.writer_lock import RunFileError
 from common.table import finite_number
 from dataset.import_checks import (  # noqa: F401 (MM_PER_PX: the CLI's --mm-per-px range)
     MM_PER_PX,
     STREAM_COLS,
     STREAM_CSV,
+    absent_columns,
     csv_fields,
     read_meta,
     read_rows,
@@ -51,7 +56,6 @@ from dataset.import_images import Squaring, check_square, read_image, square, sq
 from dataset.merge import merge_runs  # noqa: F401 (merge and preview, long exported from here)
 from dataset.pose_convention import POSE_CONVENTION, flipped_axes, pose_signs
 from dataset.preview import preview  # noqa: F401
-from dataset.runs import open_run, read
 from protocols.plan import PHASES
 
 
@@ -61,56 +65,71 @@ def _cell(value, field: S.Field) -> str:
 
 def export_run(path: str | Path, out: str | Path) -> int:
     """frames/*.png, frames.csv (every per-frame field of the table the file has), object.png,
-    reference.png, wrench_stream.csv (when recorded) and run.json in ``out``; the frame count."""
+    reference.png, wrench_stream.csv (when recorded) and run.json in a new folder ``out``; the frame
+    count. The run is verified whole first (acquisition/run_reader.py) and the folder written under
+    a temporary name beside ``out``, renamed only when complete: a refused export leaves nothing."""
     out = Path(out)
-    (out / "frames").mkdir(parents=True, exist_ok=True)
-    with open_run(path) as f:
-        n = min(f[S.FRAMES].shape[0], *(f[fl.path].shape[0] for fl in S.PER_FRAME_FIELDS if fl.path in f))
-        fields = [fl for fl in csv_fields() if fl.path in f]
-        values = {fl.path: read(f, fl.path, slice(0, n)) for fl in fields}
-        if S.PHASE_INDEX in values:  # by name, through the file's own phases
-            values[S.PHASE_INDEX] = np.array(phase_names(f, values[S.PHASE_INDEX]), dtype=object)
-        with open(out / "frames.csv", "w", newline="") as fh:
+    if out.exists() and not (out.is_dir() and not any(out.iterdir())):
+        raise RunFileError(f"--out {out}: exists; export writes a new folder: choose another --out")
+    if not out.parent.is_dir():
+        raise RunFileError(f"--out {out}: the folder {out.parent} does not exist; create it first")
+    with RunReader.open(path) as run:
+        run.verify_frames()
+        tmp = out.with_name(f".{out.name}.exporting-{os.getpid()}")
+        try:
+            _export(run, tmp)
+            os.replace(tmp, out)
+        except OSError as exc:
+            raise RunFileError(
+                f"--out {out}: cannot write the export ({exc.strerror or exc}); nothing was left there"
+            ) from None
+        finally:
+            shutil.rmtree(tmp, ignore_errors=True)
+        return run.n
+
+
+def _png(path: Path, image: np.ndarray) -> None:
+    if not cv2.imwrite(str(path), image):
+        raise OSError(f"cannot write {path}")
+
+
+def _export(run: RunReader, folder: Path) -> None:
+    (folder / "frames").mkdir(parents=True)
+    n = run.n
+    fields = [fl for fl in csv_fields() if fl.path in run.f]
+    values = {fl.path: run.rows[fl.path] for fl in fields}
+    if S.PHASE_INDEX in values:  # by name, through the file's own phases
+        values[S.PHASE_INDEX] = np.array([run.phases[int(k)] for k in values[S.PHASE_INDEX]], dtype=object)
+    with open(folder / "frames.csv", "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(["file", *(c for fl in fields for c in S.columns_of(fl))])
+        for i in range(n):
+            name = f"frames/{i:06d}.png"
+            _png(folder / name, run.frame(i))
+            cells = [name]
+            for fl in fields:
+                v = values[fl.path][i]
+                cells += [v] if fl.path == S.PHASE_INDEX else [_cell(x, fl) for x in np.atleast_1d(v)]
+            w.writerow(cells)
+    if run.stream is not None and len(run.stream):
+        with open(folder / STREAM_CSV, "w", newline="") as fh:
             w = csv.writer(fh)
-            w.writerow(["file", *(c for fl in fields for c in S.columns_of(fl))])
-            for i in range(n):
-                name = f"frames/{i:06d}.png"
-                cv2.imwrite(str(out / name), read(f, S.FRAMES, i))
-                cells = [name]
-                for fl in fields:
-                    v = values[fl.path][i]
-                    cells += [v] if fl.path == S.PHASE_INDEX else [_cell(x, fl) for x in np.atleast_1d(v)]
-                w.writerow(cells)
-        if S.WRENCH_STREAM in f and f[S.WRENCH_STREAM].shape[0]:
-            with open(out / STREAM_CSV, "w", newline="") as fh:
-                w = csv.writer(fh)
-                w.writerow(STREAM_COLS)
-                w.writerows([repr(float(x)) for x in r] for r in read(f, S.WRENCH_STREAM))
-        cv2.imwrite(str(out / "object.png"), f[S.OBJECT_IMAGE][()])
-        cv2.imwrite(str(out / "reference.png"), f[S.REFERENCE_FRAME][()])
-        a = f.attrs
-        scale = float(a.get(S.ATTR_MM_PER_PX, float("nan")))
-        meta = {
-            "mm_per_px": scale if np.isfinite(scale) else None,  # null: uncalibrated (JSON has no NaN)
-            "object": str(a.get(S.ATTR_OBJECT, "")),
-            "sensor": str(a.get(S.ATTR_SENSOR_KIND, "")),
-            "protocol": str(a.get(S.ATTR_PROTOCOL_NAME, "")),
-            "capture_hz": float(a.get(S.ATTR_CAPTURE_HZ, 1.0)),
-            "status": f[S.STATUS][()].decode(),
-            "phases": list(decode_phases(f)),
-            "pose_convention": POSE_CONVENTION,  # what every run file holds (dataset/pose_convention.py)
-        }
-    (out / "run.json").write_text(json.dumps(meta, indent=2) + "\n")
-    return n
-
-
-def _refuse_existing(out: Path) -> None:
-    """Import writes a new run file; it never appends (a run file is only resumed by the rig)."""
-    if out.exists():
-        raise RunFileError(
-            f"{out}: exists; dataset import writes a new run file: choose another --out, "
-            f"or delete {out.name} first to import it again"
-        )
+            w.writerow(STREAM_COLS)
+            w.writerows([repr(float(x)) for x in r] for r in run.stream)
+    _png(folder / "object.png", run.image(S.OBJECT_IMAGE))
+    _png(folder / "reference.png", run.image(S.REFERENCE_FRAME))
+    scale = run.number(S.ATTR_MM_PER_PX)
+    meta = {
+        "mm_per_px": scale if np.isfinite(scale) else None,  # null: uncalibrated (JSON has no NaN)
+        "object": run.text(S.ATTR_OBJECT),
+        "sensor": run.text(S.ATTR_SENSOR_KIND),
+        "protocol": run.text(S.ATTR_PROTOCOL_NAME),
+        "capture_hz": run.number(S.ATTR_CAPTURE_HZ),
+        "status": run.status,
+        "phases": list(run.phases),
+        "pose_convention": POSE_CONVENTION,  # what every run file holds (dataset/pose_convention.py)
+    }
+    (folder / "run.json").write_text(json.dumps(meta, indent=2) + "\n")
 
 
 def import_run(
@@ -122,6 +141,8 @@ def import_run(
     sensor: str | None = None,
     sensor_profile: str = "",
     squaring: Squaring = Squaring(),
+    ignore_columns: tuple[str, ...] = (),
+    say=lambda line: None,
 ) -> int:
     """A run file from a folder in the export format; the frame count.
 
@@ -130,11 +151,14 @@ def import_run(
     ConfigError or RunFileError name the file, the row or key, and the value. Poses are
     converted to the run file's convention; non-square images are cropped or padded (and
     resized) only as ``squaring`` says (dataset/import_images.py). ``sensor_profile`` is the
-    profile's record (``SensorProfile.record()``), stored as a collected run stores its own.
+    profile's record (``SensorProfile.record()``), stored as a collected run stores its own ("":
+    the run says it has none). ``ignore_columns``: frames.csv columns to leave out (any other
+    column the format does not know is refused). ``say`` hears which absent columns took their
+    documented default. The file appears at ``out`` only once complete (acquisition/whole_run.py).
     """
     folder, out = Path(folder), Path(out)
-    _refuse_existing(out)
-    table, rows = read_table(folder)
+    check_new_output(out, "dataset import")
+    table, columns, rows = read_table(folder, tuple(ignore_columns))
     meta = read_meta(folder)
     if mm_per_px is not None:
         scale = finite_number(str(folder), "--mm-per-px", mm_per_px, low=MM_PER_PX[0], high=MM_PER_PX[1])
@@ -168,6 +192,9 @@ def import_run(
     if reference.shape != first.shape:
         reference = cv2.resize(reference, (side, side), interpolation=cv2.INTER_AREA)
     flips = flipped_axes(signs)
+    filled = absent_columns(columns)
+    if filled:
+        say(f"frames.csv has no column for: {'; '.join(filled)} (the format's defaults)")
     header = RunHeader(
         protocol_name=meta.get("protocol", "imported"),
         protocol_toml="",
@@ -176,6 +203,8 @@ def import_run(
             f"pose_convention: {json.dumps(meta['pose_convention'])}"
             f"{'; converted: ' + ', '.join(flips) + ' flipped' if flips else ''}\n"
             f"images: {first_raw.shape[1]}x{first_raw.shape[0]} -> {side}x{side} ({squaring.options()})"
+            + (f"\ncolumns absent, defaults taken: {'; '.join(filled)}" if filled else "")
+            + (f"\ncolumns ignored: {', '.join(ignore_columns)}" if ignore_columns else "")
         ),
         object_name=object_name or meta.get("object", "imported"),
         object_geometry="imported",
@@ -187,8 +216,7 @@ def import_run(
         phases=phases,
         sensor_profile=sensor_profile,
     )
-    writer = RunWriter.create(out, header, first.shape, obj, reference)
-    try:
+    with whole_run(out, header, first.shape, obj, reference, what="dataset import") as writer:
         for i, (frame_path, values) in enumerate(checked):
             img = first_raw if i == 0 else read_image(frame_path, f"frame {i}")
             if img.shape != first_raw.shape:
@@ -198,9 +226,4 @@ def import_run(
                 )
             writer.append(first if i == 0 else square(img, squaring), stream=stream if i == 0 else None, **values)
         writer.set_status("complete", "")
-    except BaseException:
-        writer.set_status("aborted", "import failed")
-        raise
-    finally:
-        writer.close()
     return len(rows)

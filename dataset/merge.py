@@ -1,11 +1,25 @@
-"""Merging runs of one object, sensor and frame size into one run file.
+"""Merging runs of one object, sensor and scale into one run file that validates.
 
-Every per-frame field of the run-file table (acquisition/schema.py) is carried; a
-source written before an optional field existed contributes that field's fill value.
-Phases are re-encoded by name: the merged file's ``phases`` is the sources' lists
-joined in order of first appearance, so sources whose lists differ in order still
-decode to the same names. The full-rate wrench stream is per run and per clock: the
-merged file has none (each source keeps its own).
+* Every source is read through the verified reader and checked whole first (schema, rows, every
+  frame's checksum, acquisition/run_reader.py): a damaged source, or a value outside the schema
+  (a phase index past the file's list), is refused naming the file and the frame, never carried
+  into the merged file nor rewritten into something else.
+* Like with like: one object (and the same object file and photo, and object image), sensor kind,
+  sensor profile, frame size, mm per pixel and capture rate; anything else is refused naming the
+  runs and their values.
+* Every per-frame field of the run-file table is carried (a source written before an optional
+  field existed contributes that field's fill value), and the full-rate wrench stream too.
+* Time keeps increasing across sources: each source after the first is shifted by one offset for
+  ``t_frame_s`` and its stream (its first frame one capture period after the previous source's
+  last, and its first stream sample after the previous source's last) and one for
+  ``t_capture_s``, as ``--resume`` offsets a resumed clock; ``capture_index`` is the merged file's
+  own grid 0, 1, 2, ... The offsets are recorded in the merged file's ``rig_config``.
+* Phases are re-encoded by name: the merged file's ``phases`` is the sources' lists joined in
+  order of first appearance.
+* The header is the first source's where the sources agree; a protocol that differs is carried
+  as every source's text, each under a comment naming its file; ``contact_origin`` is the first
+  source's (poses are relative to each run's own contact point, so they need no change).
+* All or nothing: the merged file appears at ``--out`` only once complete (acquisition/whole_run.py).
 """
 
 from __future__ import annotations
@@ -16,73 +30,156 @@ from pathlib import Path
 import numpy as np
 
 from acquisition import schema as S
-from acquisition.run_file import RunFileError, RunHeader, RunWriter
-from acquisition.run_layout import decode_phases
+from acquisition.run_reader import RunReader
 from acquisition.run_storage import frames_codec
-from dataset.runs import open_run, read
+from acquisition.run_writer import RunHeader
+from acquisition.whole_run import check_new_output, whole_run
+from acquisition.writer_lock import RunFileError
+
+# root attributes (and the object image) every source must share, with what a difference would break
+SHARED = (
+    (S.ATTR_OBJECT, "the object"),
+    (S.ATTR_SENSOR_KIND, "the sensor kind"),
+    (S.ATTR_SENSOR_PROFILE, "the sensor profile (the physics render of each frame)"),
+    (S.ATTR_OBJECT_FILE, "the object file"),
+    (S.ATTR_OBJECT_PHOTO_SHA256, "the object's photo"),
+    (S.ATTR_MM_PER_PX, "mm per pixel (where the condition is placed)"),
+    (S.ATTR_CAPTURE_HZ, "the capture rate (one per merged file)"),
+)
+
+
+def _like_with_like(paths: Sequence[str | Path], sources: list[RunReader]) -> None:
+    shapes = [r.frame_shape for r in sources]
+    if len(set(shapes)) > 1:
+        detail = ", ".join(f"{p}: {s[1]}x{s[0]}" for p, s in zip(paths, shapes))
+        raise RunFileError(f"runs differ in frame size ({detail}); merge like with like")
+    for name, what in SHARED:
+        values = [
+            r.text(name) if name not in (S.ATTR_MM_PER_PX, S.ATTR_CAPTURE_HZ) else r.number(name) for r in sources
+        ]
+        if len({repr(v) for v in values}) > 1:
+            detail = ", ".join(f"{p}: {str(v)[:60]!r}" for p, v in zip(paths, values))
+            raise RunFileError(f"runs differ in {name}, {what} ({detail}); merge like with like")
+    first = sources[0].image(S.OBJECT_IMAGE)
+    for p, r in zip(paths[1:], sources[1:]):
+        if not np.array_equal(r.image(S.OBJECT_IMAGE), first):
+            raise RunFileError(f"{p}: its {S.OBJECT_IMAGE} differs from {paths[0]}'s; merge like with like")
+
+
+def _offsets(sources: list[RunReader], period: float) -> list[tuple[float, float]]:
+    """(offset of t_frame_s and the stream, offset of t_capture_s) per source (module docstring)."""
+    out = [(0.0, 0.0)]
+    last_t = last_c = last_stream = None
+    for k, r in enumerate(sources):
+        t, c = r.rows[S.T_FRAME], r.rows[S.T_CAPTURE]
+        stream = r.stream if r.stream is not None and len(r.stream) else None
+        if k:
+            needs: list[float] = [] if last_t is None or not len(t) else [float(last_t + period - t[0])]
+            if last_stream is not None and stream is not None:
+                needs.append(float(last_stream + period - stream[0, 0]))
+            off_c = last_c + period - c[0] if last_c is not None and len(c) else 0.0
+            out.append((max(needs, default=0.0), off_c))
+        off_t, off_c = out[k]
+        if len(t):
+            last_t, last_c = float(t[-1] + off_t), float(c[-1] + off_c)
+        if stream is not None:
+            last_stream = float(stream[-1, 0] + off_t)
+    return out
+
+
+def _origin(r: RunReader) -> tuple[float, float, float, float]:
+    x, y, z, theta = (float(v) for v in r.attrs[S.ATTR_CONTACT_ORIGIN])
+    return x, y, z, theta
+
+
+def _protocol(paths: Sequence[str | Path], sources: list[RunReader]) -> tuple[str, str]:
+    names = list(dict.fromkeys(r.text(S.ATTR_PROTOCOL_NAME) for r in sources))
+    texts = [r.text(S.ATTR_PROTOCOL) for r in sources]
+    if len(set(texts)) == 1:
+        return "+".join(names), texts[0]
+    joined = "\n".join(f"# --- merged source {k}: {p} ---\n{t}" for k, (p, t) in enumerate(zip(paths, texts)))
+    return "+".join(names), joined
 
 
 def merge_runs(paths: Sequence[str | Path], out: str | Path) -> int:
-    """One run file from several of one object, sensor and frame size; keeps each frame's source."""
-    sources = [open_run(p) for p in paths]
+    """One run file from several of one object, sensor and scale (module docstring); the frame count."""
+    out = Path(out)
+    if not paths:
+        raise RunFileError("no run files to merge")
+    check_new_output(out, "dataset merge")
+    sources: list[RunReader] = []
     try:
-        first = sources[0]
-        keys = [
-            (str(f.attrs.get(S.ATTR_OBJECT)), str(f.attrs.get(S.ATTR_SENSOR_KIND)), f[S.FRAMES].shape[1:])
-            for f in sources
-        ]
-        if len(set(keys)) > 1:
-            detail = ", ".join(f"{p}: {k[0]}/{k[1]}/{k[2][1]}x{k[2][0]}" for p, k in zip(paths, keys))
-            raise RunFileError(f"runs differ in object, sensor or frame size ({detail}); merge like with like")
-        phases: list[str] = []
-        for f in sources:
-            phases += [p for p in decode_phases(f) if p not in phases]
-        a = first.attrs
-        total = sum(f[S.FRAMES].shape[0] for f in sources)
-        header = RunHeader(
-            protocol_name=str(a.get(S.ATTR_PROTOCOL_NAME, "")),
-            protocol_toml=str(a.get(S.ATTR_PROTOCOL, "")),
-            rig_config="merged from: " + ", ".join(str(Path(p).resolve()) for p in paths),
-            object_name=keys[0][0],
-            object_geometry=str(a.get(S.ATTR_OBJECT_GEOMETRY, "")),
-            sensor_kind=keys[0][1],
-            mm_per_px=float(a.get(S.ATTR_MM_PER_PX, float("nan"))),
-            capture_hz=float(a.get(S.ATTR_CAPTURE_HZ, 1.0)),
-            frames_planned=total,
-            contact_origin=tuple(a.get(S.ATTR_CONTACT_ORIGIN, (0, 0, 0, 0))),
-            phases=tuple(phases),
-        )
-        writer = RunWriter.create(
-            out,
-            header,
-            keys[0][2],
-            first[S.OBJECT_IMAGE][()],
-            first[S.REFERENCE_FRAME][()],
-            codec=frames_codec(first),  # the first run's codec (simulated runs: the fast one); None: the default
-        )
-        k = 0
-        try:
-            statuses = []
-            for f in sources:
-                statuses.append(f[S.STATUS][()].decode())
-                n = f[S.FRAMES].shape[0]
-                rows = {
-                    fl.path: read(f, fl.path, slice(0, n)) if fl.path in f else np.full((n, *fl.shape), fl.fill)
-                    for fl in S.PER_FRAME_FIELDS
-                }
-                # this source's phase indices → the merged list's
-                recode = np.array([phases.index(p) for p in decode_phases(f)] or [0], dtype=np.int8)
-                rows[S.PHASE_INDEX] = recode[np.clip(rows[S.PHASE_INDEX], 0, len(recode) - 1)]
-                for i in range(n):
-                    row = {name: values[i] for name, values in rows.items()}
-                    row[S.CAPTURE_INDEX] = k  # the merged file's own capture grid
-                    writer.append(read(f, S.FRAMES, i), **row)
-                    k += 1
-            bad = [f"{p}: {s}" for p, s in zip(paths, statuses) if s != "complete"]
-            writer.set_status("complete" if not bad else "aborted", "; ".join(bad))
-        finally:
-            writer.close()
-        return total
+        for p in paths:
+            sources.append(RunReader.open(p))
+            sources[-1].verify_frames()
+        _like_with_like(paths, sources)
+        return _write(paths, sources, out)
     finally:
-        for f in sources:
-            f.close()
+        for r in sources:
+            r.close()
+
+
+def _write(paths: Sequence[str | Path], sources: list[RunReader], out: Path) -> int:
+    first = sources[0]
+    phases: list[str] = []
+    for r in sources:
+        phases += [p for p in r.phases if p not in phases]
+    hz = first.number(S.ATTR_CAPTURE_HZ)
+    offsets = _offsets(sources, 1.0 / hz)
+    total = sum(r.n for r in sources)
+    protocol_name, protocol_toml = _protocol(paths, sources)
+    origins = [_origin(r) for r in sources]
+    lines = [
+        f"{Path(p).resolve()}: {r.n} frames, status {r.status}, t_frame_s and stream {off_t:+.6f} s, "
+        f"t_capture_s {off_c:+.6f} s, contact_origin {origin}"
+        for p, r, (off_t, off_c), origin in zip(paths, sources, offsets, origins)
+    ]
+    header = RunHeader(
+        protocol_name=protocol_name,
+        protocol_toml=protocol_toml,
+        rig_config="merged from (file: frames, status, time offsets added, contact point):\n" + "\n".join(lines),
+        object_name=first.text(S.ATTR_OBJECT),
+        object_geometry=first.text(S.ATTR_OBJECT_GEOMETRY),
+        sensor_kind=first.text(S.ATTR_SENSOR_KIND),
+        mm_per_px=first.number(S.ATTR_MM_PER_PX),
+        capture_hz=hz,
+        frames_planned=total,
+        contact_origin=origins[0],
+        phases=tuple(phases),
+        sensor_profile=first.text(S.ATTR_SENSOR_PROFILE),
+        object_file_toml=first.text(S.ATTR_OBJECT_FILE),
+        object_photo_sha256=first.text(S.ATTR_OBJECT_PHOTO_SHA256),
+    )
+    codec = frames_codec(first.f)  # the first run's codec (simulated runs: the fast one); None: the default
+    with whole_run(
+        out,
+        header,
+        first.frame_shape,
+        first.image(S.OBJECT_IMAGE),
+        first.image(S.REFERENCE_FRAME),
+        what="dataset merge",
+        codec=codec,
+    ) as writer:
+        k = 0
+        for r, (off_t, off_c) in zip(sources, offsets):
+            rows = dict(r.rows)
+            recode = np.array([phases.index(p) for p in r.phases], dtype=np.int8)  # this source's → the merged list's
+            rows[S.PHASE_INDEX] = recode[rows[S.PHASE_INDEX]] if r.n else rows[S.PHASE_INDEX]
+            rows[S.T_FRAME] = rows[S.T_FRAME] + off_t
+            rows[S.T_CAPTURE] = rows[S.T_CAPTURE] + off_c
+            stream = None
+            if r.stream is not None and len(r.stream) and writer.records_stream:
+                stream = r.stream.copy()
+                stream[:, 0] += off_t
+            for i in range(r.n):
+                row = {name: values[i] for name, values in rows.items()}
+                row[S.CAPTURE_INDEX] = k  # the merged file's own capture grid
+                writer.append(r.frame(i), stream=stream if i == 0 else None, **row)
+                k += 1
+        statuses = [r.status for r in sources]
+        bad = [f"{p}: {s} ({r.reason or 'no reason'})" for p, s, r in zip(paths, statuses, sources) if s != "complete"]
+        warnings = [int(r.f[S.SIM_SOLVER_WARNINGS][()]) for r in sources if S.SIM_SOLVER_WARNINGS in r.f]
+        if warnings and all(w >= 0 for w in warnings):
+            writer.set_sim_solver_warnings(sum(warnings))
+        writer.set_status("complete" if not bad else "aborted", "; ".join(bad))
+    return total

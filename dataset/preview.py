@@ -17,9 +17,9 @@ import cv2
 import numpy as np
 
 from acquisition import schema as S
-from acquisition.run_file import RunFileError
+from acquisition.run_reader import RunReader
+from acquisition.writer_lock import RunFileError
 from dataset.condition import background_bgr, place_object
-from dataset.runs import open_run, read
 
 COLS = 6
 CONDITION_BGR = (255, 0, 255)  # magenta: the condition (object at the pose)
@@ -129,21 +129,21 @@ def contact_sheet(
     """Write the sheet PNG; the tiles with their poses, wrenches and (with ``condition``) centroids."""
     sheet = Sheet()
     images = []
-    with open_run(path) as f:
-        n = f[S.FRAMES].shape[0]
+    with RunReader.open(path) as run:
+        n = run.n
         if n == 0:
             raise RunFileError(f"{path}: no frames to preview")
-        sheet.frame_px = int(f[S.FRAMES].shape[2])
-        obj = read(f, S.OBJECT_IMAGE) if condition else None
-        reference = read(f, S.REFERENCE_FRAME) if condition else None
-        mm_per_px = float(f.attrs.get(S.ATTR_MM_PER_PX, float("nan")))
+        sheet.frame_px = int(run.frame_shape[1])
+        obj = run.image(S.OBJECT_IMAGE) if condition else None
+        reference = run.image(S.REFERENCE_FRAME) if condition else None
+        mm_per_px = run.number(S.ATTR_MM_PER_PX)
         if condition and not np.isfinite(mm_per_px):
             raise RunFileError(f"{path}: attribute {S.ATTR_MM_PER_PX} is {mm_per_px}: the condition cannot be placed")
         picks = np.unique(np.linspace(0, n - 1, min(tiles, n)).astype(int))
         for i in picks:
-            frame = read(f, S.FRAMES, int(i))
-            w = read(f, S.WRENCH, int(i))
-            pose = read(f, S.POSE_MEASURED, int(i))
+            frame = run.frame(int(i))
+            w = run.rows[S.WRENCH][int(i)]
+            pose = run.rows[S.POSE_MEASURED][int(i)]
             img = cv2.resize(frame, (tile_px, tile_px), interpolation=cv2.INTER_AREA)
             lines = [
                 f"#{i}",
@@ -172,8 +172,19 @@ def contact_sheet(
     grid = np.vstack([np.hstack(images[r : r + COLS]) for r in range(0, len(images), COLS)])
     if condition:
         grid = np.vstack([grid, _legend(grid.shape[1], sheet)])
-    if not cv2.imwrite(str(out), grid):
-        raise RunFileError(f"{out}: cannot write the contact sheet (a .png path in a writable folder?)")
+    out = Path(out)
+    try:
+        encoded, data = cv2.imencode(out.suffix or ".png", grid)
+    except cv2.error:
+        encoded = False
+    if not encoded:
+        raise RunFileError(
+            f"--out {out}: cannot encode a contact sheet as {out.suffix or 'nothing'!r}; expected a .png path"
+        )
+    try:
+        out.write_bytes(data.tobytes())
+    except OSError as exc:
+        raise RunFileError(f"--out {out}: cannot write the contact sheet ({exc.strerror or exc})") from None
     return sheet
 
 

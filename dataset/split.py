@@ -13,8 +13,8 @@ never seen in training).
 
 from __future__ import annotations
 
-import hashlib
 import json
+import os
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -22,19 +22,18 @@ from pathlib import Path
 import numpy as np
 
 from acquisition import schema as S
-from common.errors import ConfigError, ToolError
+from acquisition.run_identity import identity_of
+from common.errors import ConfigError
 from common.table import finite_number
-from dataset.runs import open_run, summarize
+from dataset.runs import RunSummary, open_run, summary_of
+from dataset.split_manifest import MANIFEST, SplitError, check_unchanged, load_split
 
-MANIFEST = "split.json"
+__all__ = ["MANIFEST", "SplitError", "check_unchanged", "load_split", "make_split", "parse_ratios"]
+
 PART_NAMES = {2: ("train", "test"), 3: ("train", "val", "test")}
 HELD_OUT_PART = "test_object"  # every frame of the held-out objects
 TEST_PARTS = ("test", HELD_OUT_PART)  # the parts evaluation reports on, when present
 PERCENTILES = (2, 50, 98)  # of the training wrench, per component: the range a force sweep covers
-
-
-class SplitError(ToolError):
-    pass
 
 
 def parse_ratios(text: str) -> tuple[float, ...]:
@@ -112,7 +111,8 @@ def make_split(
         )
     ratios = parse_ratios(ratios_text)
     names = PART_NAMES[len(ratios)]
-    summaries = [summarize(p) for p in paths]
+    verified = [_verified(p) for p in paths]
+    summaries = [v.summary for v in verified]
     shapes = {s.frame_shape for s in summaries}
     if len(shapes) > 1:
         detail = ", ".join(f"{s.path}: {s.frame_shape}" for s in summaries)
@@ -163,9 +163,7 @@ def make_split(
     if held:
         parts[HELD_OUT_PART] = held_rows
     train = parts["train"]
-    wrench = np.concatenate(
-        [_wrenches(summaries[i].path, train[train[:, 0] == i][:, 1]) for i in range(len(summaries))]
-    )
+    wrench = np.concatenate([v.wrench[train[train[:, 0] == i][:, 1]] for i, v in enumerate(verified)])
     mean = wrench.mean(axis=0) if len(wrench) else np.zeros(6)
     std = wrench.std(axis=0) if len(wrench) else np.ones(6)
     std = np.where(std > 1e-9, std, 1.0)
@@ -173,10 +171,6 @@ def make_split(
     objects = {
         name: sorted({summaries[int(r)].object_name for r in np.unique(part[:, 0])}) for name, part in parts.items()
     }
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    for name, part in parts.items():
-        np.save(out / f"{name}.npy", part)
     manifest = {
         "ratios": ratios_text,
         "by": by,
@@ -190,9 +184,10 @@ def make_split(
                 "status": s.status,
                 "mm_per_px": s.mm_per_px,
                 "frame_shape": list(s.frame_shape),
-                "fingerprint": _fingerprint(s.path),
+                "sensor_profile": s.sensor_profile,
+                "identity": v.identity,
             }
-            for s in summaries
+            for s, v in zip(summaries, verified)
         ],
         "parts": {name: int(len(part)) for name, part in parts.items()},
         "held_out_objects": held,
@@ -202,31 +197,47 @@ def make_split(
         "wrench_percentiles": {f"p{q}": row.tolist() for q, row in zip(PERCENTILES, pct)},
         "wrench_stats_from": "train",
     }
-    (out / MANIFEST).write_text(json.dumps(manifest, indent=2) + "\n")
+    out = Path(out)
+    _write(out, parts, manifest)
     return Split(out, [s.path for s in summaries], parts, mean, std)
 
 
-def _wrenches(path: str, frames: np.ndarray) -> np.ndarray:
-    with open_run(path) as f:
-        return f[S.WRENCH][: (frames.max() + 1) if len(frames) else 0][frames] if len(frames) else np.zeros((0, 6))
+@dataclass(frozen=True)
+class Verified:
+    """A run file as the split read it: verified whole, its summary, wrench rows and identity."""
+
+    summary: RunSummary
+    wrench: np.ndarray
+    identity: dict
 
 
-def _fingerprint(path: str) -> str:
-    """Identifies the run's content cheaply: protocol text, frame count, first and last wrench."""
-    with open_run(path) as f:
-        n = f[S.FRAMES].shape[0]
-        h = hashlib.sha1(str(f.attrs.get(S.ATTR_PROTOCOL, "")).encode())
-        h.update(str(n).encode())
-        if n:
-            h.update(f[S.WRENCH][0].tobytes() + f[S.WRENCH][n - 1].tobytes())
-        return h.hexdigest()[:16]
+def _verified(path: str | Path) -> Verified:
+    """Open and verify the whole run (schema, rows, every frame's checksum: acquisition/run_reader.py)
+    and record its identity, so that training reads only files this verification still holds for."""
+    with open_run(path) as run:
+        run.verify_frames()
+        return Verified(summary_of(run), run.rows[S.WRENCH], identity_of(Path(path), run.f))
 
 
-def load_split(directory: str | Path) -> tuple[dict, dict[str, np.ndarray]]:
-    directory = Path(directory)
-    manifest_path = directory / MANIFEST
-    if not manifest_path.exists():
-        raise SplitError(f"{directory}: no {MANIFEST}; make one with `dataset split`")
-    manifest = json.loads(manifest_path.read_text())
-    parts = {name: np.load(directory / f"{name}.npy") for name in manifest["parts"]}
-    return manifest, parts
+def _write(out: Path, parts: dict[str, np.ndarray], manifest: dict) -> None:
+    """The part files and split.json into ``out`` (created), split.json last; SplitError naming the
+    path when it cannot be written (a read-only folder, a full disk): nothing is half-written."""
+    written: list[Path] = []
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        for name, part in parts.items():
+            target = out / f"{name}.npy"
+            tmp = out / f".{name}.npy.{os.getpid()}.tmp"
+            written.append(tmp)
+            with open(tmp, "wb") as fh:
+                np.save(fh, part)
+            os.replace(tmp, target)
+        tmp = out / f".{MANIFEST}.{os.getpid()}.tmp"
+        written.append(tmp)
+        tmp.write_text(json.dumps(manifest, indent=2) + "\n")
+        os.replace(tmp, out / MANIFEST)
+    except OSError as exc:
+        for p in written:
+            p.unlink(missing_ok=True)
+        where = exc.filename or out
+        raise SplitError(f"--out {out}: cannot write the split ({where}: {exc.strerror or exc})") from None

@@ -1,8 +1,11 @@
 """A PyTorch Dataset over a split: (condition image, wrench, tactile image).
 
-Imports torch: used by training only, never by the other `dataset` commands. HDF5
-files are opened lazily in each worker process (h5py handles do not survive fork),
-read with SWMR, and kept open for the worker's life. Besides the model's inputs, an
+Imports torch: used by training only, never by the other `dataset` commands. Before anything
+is read, every run file is compared with the identity the split recorded when it verified it
+(dataset/split_manifest.py): a file changed since is refused, naming it. Run files are opened
+lazily in each worker process (h5py handles do not survive fork) through the verified reader
+(acquisition/run_reader.py: rows checked at open, each frame's checksum as it is read, a damaged
+one named with its file and frame), and kept open for the worker's life. Besides the model's inputs, an
 item carries any per-frame fields of the run-file table asked for (``fields=``), so a
 field added to the table reaches training without touching this module, and the physics
 render of each frame when a cache of them is given (``physics=``, model/physics_condition.py).
@@ -14,15 +17,14 @@ import os
 from pathlib import Path
 
 import cv2
-import h5py
 import numpy as np
 import torch
 from torch.utils.data import Dataset
 
 from acquisition import schema as S
-from acquisition.hdf5_open import open_swmr_read
+from acquisition.run_reader import RunReader
 from dataset.condition import condition_image, normalise_wrench
-from dataset.split import load_split
+from dataset.split_manifest import check_unchanged, load_split
 
 
 def image_to_tensor(bgr: np.ndarray) -> torch.Tensor:
@@ -90,6 +92,7 @@ class TactileDataset(Dataset):
         physics: str | Path | None = None,
     ):
         self.manifest, parts = load_split(split_dir)
+        check_unchanged(self.manifest, split_dir)
         if part not in parts:
             raise KeyError(f"{split_dir}: no part {part!r}; it has {', '.join(parts)}")
         table = {f.path: f for f in S.PER_FRAME_FIELDS}
@@ -106,8 +109,7 @@ class TactileDataset(Dataset):
         self.mean = np.asarray(self.manifest["wrench_mean"])
         self.std = np.asarray(self.manifest["wrench_std"])
         self.physics = None if physics is None else self._physics(Path(physics), part)
-        self._files: dict[int, h5py.File] = {}
-        self._objects: dict[int, np.ndarray] = {}
+        self._files: dict[int, RunReader] = {}
         self._pid: int | None = None
 
     def _physics(self, path: Path, part: str) -> np.ndarray:
@@ -132,13 +134,11 @@ class TactileDataset(Dataset):
     def __len__(self) -> int:
         return len(self.rows)
 
-    def _file(self, run: int) -> h5py.File:
+    def _file(self, run: int) -> RunReader:
         if self._pid != os.getpid():  # a fresh worker: handles from the parent are not ours
-            self._files, self._objects, self._pid = {}, {}, os.getpid()
+            self._files, self._pid = {}, os.getpid()
         if run not in self._files:
-            f = open_swmr_read(Path(self.runs[run]))  # bounded retries: a damaged file fails, never hangs
-            self._files[run] = f
-            self._objects[run] = f[S.OBJECT_IMAGE][()]
+            self._files[run] = RunReader.open(self.runs[run])  # verified; bounded retries: never hangs
         return self._files[run]
 
     def _to_tensor(self, bgr: np.ndarray) -> torch.Tensor:
@@ -149,17 +149,12 @@ class TactileDataset(Dataset):
     def __getitem__(self, i: int) -> dict:
         run, frame = (int(v) for v in self.rows[i])
         f = self._file(run)
-        tactile = f[S.FRAMES][frame]
-        wrench = f[S.WRENCH][frame]
-        pose = f[S.POSE_MEASURED][frame]
-        obj = self._objects[run]
+        tactile = f.frame(frame)
+        wrench = f.rows[S.WRENCH][frame]
+        pose = f.rows[S.POSE_MEASURED][frame]
+        obj = f.image(S.OBJECT_IMAGE)
         condition = condition_image(obj, pose[0], pose[1], pose[3], self.mm_per_px[run], tactile.shape[1], self.size)
-        extra = {
-            fl.path: torch.from_numpy(
-                np.asarray(f[fl.path][frame] if fl.path in f else np.full(fl.shape, fl.fill), dtype=fl.dtype)
-            )
-            for fl in self.fields
-        }
+        extra = {fl.path: torch.from_numpy(np.asarray(f.rows[fl.path][frame], dtype=fl.dtype)) for fl in self.fields}
         if self.physics is not None:
             extra["physics"] = image_to_tensor(np.asarray(self.physics[i]))
         return extra | {

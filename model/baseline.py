@@ -6,9 +6,11 @@ mechanics the simulated rig solves (sensor_sim.world_contact) and lights the res
 optics (sensor_sim.optics), with no sensor noise.
 
 The profile: the one given (``evaluate --profile``), else the one the run file records
-(``sensor_profile``, found again by its content hash), else the shipped GelSight Mini
-default. The gel (thickness, modulus) is the profile's; the field of view is the run's
-(frame width × its mm_per_px) when the file has a scale, else the profile's. Each frame is rendered on its own,
+(``sensor_profile``, found again by its content hash). A run that records none (a real sensor's
+run, or one imported without ``--profile``) is never rendered through another sensor's profile:
+``NoProfile`` says so and asks for ``--profile``. The gel (thickness, modulus) is the profile's;
+the field of view is the run's (frame width × its mm_per_px) when the file has a scale, else the
+profile's. Each frame is rendered on its own,
 without the friction history of the frames before it, as Taxim or FOTS render one; for marker
 sensors the measured Fx, Fy and Mz stand in for that history (the tangential state that carries
 them, sensor_sim/load_match.py), since the markers' shear is what they show.
@@ -26,32 +28,48 @@ import math
 import time
 
 import cv2
-import h5py
 import numpy as np
 
 from acquisition import schema as S
+from acquisition.run_reader import RunReader
 
 
 class BaselineUnavailable(ValueError):
     pass
 
 
-def run_profile(run_path: str, attrs: dict, profile=None):
-    """The SensorProfile for a run's physics render (see the module docstring); BaselineUnavailable
-    when the run records a profile that cannot be found again."""
-    from sensor_sim.profile import ProfileError, default_profile, profile_from_record
+class NoProfile(BaselineUnavailable):
+    """A physics render asked for a run that records no sensor profile, and none was given."""
+
+
+def no_profile(run_path: str, what: str, option: str = "--profile FILE") -> NoProfile:
+    return NoProfile(
+        f"{run_path}: records no sensor profile (a real sensor's run, or imported without --profile), so {what} "
+        f"would render it through another sensor's: pass {option} (rig sensor calibrate writes one)"
+    )
+
+
+def run_profile(run_path: str, record: str, profile=None):
+    """The SensorProfile for a run's physics render (see the module docstring): ``profile`` when
+    given, else the one ``record`` (the run's ``sensor_profile`` attribute) names. NoProfile when
+    the run records none; BaselineUnavailable when it records one that cannot be found again."""
+    from sensor_sim.profile import ProfileError, profile_from_record
 
     if profile is not None:
         return profile
-    recorded = attrs.get(S.ATTR_SENSOR_PROFILE)
-    if recorded is None:
-        return default_profile()
+    if not record.strip():
+        raise no_profile(run_path, "the physics render")
     try:
-        return profile_from_record(
-            recorded.decode() if isinstance(recorded, bytes) else str(recorded), where=str(run_path)
-        )
+        return profile_from_record(record, where=str(run_path))
     except ProfileError as exc:
         raise BaselineUnavailable(str(exc)) from None
+
+
+def profile_source(run_path: str, record: str, profile=None) -> str:
+    """Which profile renders a run, in words (the report names it for each run)."""
+    chosen = run_profile(run_path, record, profile)
+    how = "given by --profile" if profile is not None else "recorded in the run"
+    return f"{chosen.name} (sha256 {chosen.content_hash()[:12]}…, {chosen.path}; {how})"
 
 
 class ObjectRender:
@@ -127,19 +145,20 @@ class PhysicsRender(ObjectRender):
         to render with (default: the run's). ``background``: "run" (its no-contact reference frame,
         for sensors without markers) or "simulator" (the simulator's own: what the physics
         conditioning renders on, so that `generate` can render it without the run file)."""
-        with h5py.File(run_path, "r", swmr=True) as f:
-            attrs = dict(f.attrs)
-            obj = str(attrs.get(S.ATTR_OBJECT, ""))
-            kind = str(attrs.get(S.ATTR_SENSOR_KIND, "rgb"))
-            h, w = f[S.FRAMES].shape[1:3]
-            reference = f[S.REFERENCE_FRAME][()] if background == "run" else None
+        with RunReader.open(run_path) as run:
+            obj = run.text(S.ATTR_OBJECT)
+            kind = run.text(S.ATTR_SENSOR_KIND)
+            h, w = run.frame_shape[:2]
+            reference = run.image(S.REFERENCE_FRAME) if background == "run" else None
+            mm_per_px = run.number(S.ATTR_MM_PER_PX)
+            record = run.sensor_profile
+            self.wrench = run.rows[S.WRENCH]  # every frame's recorded wrench (N, N·mm)
         if h != w:
             raise BaselineUnavailable(f"{run_path}: frames are {w}x{h}; the simulator renders a square pad")
-        mm_per_px = float(attrs.get(S.ATTR_MM_PER_PX, float("nan")))
         super().__init__(
             obj,
             kind,
-            run_profile(run_path, attrs, profile),
+            run_profile(run_path, record, profile),
             w,
             mm_per_px if math.isfinite(mm_per_px) and mm_per_px > 0 else None,
             background=reference,
@@ -156,17 +175,13 @@ def render_frames(
     and the seconds per frame it took. ``profile``: a SensorProfile for every run (default: each
     run's own, see the module docstring)."""
     renderers: dict[int, PhysicsRender] = {}
-    recorded: dict[int, np.ndarray] = {}
     out = []
     t0 = time.perf_counter()
     for k, ((run, frame), pose) in enumerate(zip(rows, poses)):
         run = int(run)
         if run not in renderers:
             renderers[run] = PhysicsRender(run_paths[run], profile=profile)
-            if wrenches is None:
-                with h5py.File(run_paths[run], "r", swmr=True) as f:
-                    recorded[run] = f[S.WRENCH][()]
-        wrench = wrenches[k] if wrenches is not None else recorded[run][int(frame)]
+        wrench = wrenches[k] if wrenches is not None else renderers[run].wrench[int(frame)]
         img = renderers[run].render(pose, wrench)
         if img.shape[0] != size:
             img = cv2.resize(img, (size, size), interpolation=cv2.INTER_AREA)

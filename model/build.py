@@ -24,15 +24,17 @@ def build(
     *,
     device: str | None = None,
     log: Callable[[str], None] = print,
+    profile=None,
 ) -> Trainer:
     """A Trainer on the split's train part writing to ``out_dir`` (checkpoint/, samples/), logging
-    through ``log`` on the main process. Raises ValueError for a split with less than one batch."""
-    physics = None
+    through ``log`` on the main process. Raises ValueError for a split with less than one batch.
+    ``profile``: the SensorProfile of physics conditioning for runs that record none (``--profile``)."""
+    physics = spec = None
     if model_cfg.uses_physics:  # the train part's physics renders, made once per size (minutes) and cached
         from model.physics_condition import physics_cache, split_spec
 
-        spec = split_spec(split_dir)  # one line (PhysicsUnavailable) for an object the simulator lacks
-        physics = physics_cache(split_dir, "train", model_cfg.image_size, log=log)
+        spec = split_spec(split_dir, profile)  # one line for an object the simulator lacks, a run without a profile
+        physics = physics_cache(split_dir, "train", model_cfg.image_size, spec, log=log)
     data = TactileDataset(split_dir, "train", size=model_cfg.image_size, physics=physics)
     if len(data) < train_cfg.batch_size:
         raise ValueError(f"{split_dir}: {len(data)} training frames, fewer than one batch of {train_cfg.batch_size}")
@@ -45,7 +47,7 @@ def build(
         # the frame width that mm_per_px belongs to: an object image spans frame_px × mm_per_px mm
         "frame_px": int(data.manifest["runs"][0]["frame_shape"][1]),
     }
-    if model_cfg.uses_physics:
+    if spec is not None:
         meta["physics"] = spec.to_meta()  # what renders the physics channels at inference
     callbacks: list[Callback] = [Progress(log)]
     if train_cfg.sample_every:
@@ -59,6 +61,7 @@ def build(
                 steps=train_cfg.sample_steps,
                 seed=train_cfg.seed,
                 log=log,
+                physics=spec,
             )
         )
     callbacks.append(Checkpoints(out_dir, model_cfg, meta, every=train_cfg.checkpoint_every))

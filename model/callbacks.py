@@ -59,9 +59,12 @@ class ValidationSamples(Callback):
         steps: int = 25,
         seed: int = 0,
         log: Callable[[str], None] = print,
+        physics=None,
     ):
+        """``physics``: a physics model's PhysicsSpec (model/physics_condition.py), which renders its channels."""
         self.split_dir, self.out, self.size = Path(split_dir), Path(out_dir), size
         self.every, self.count, self.steps, self.seed, self.log = every, count, steps, seed, log
+        self.physics = physics
         self._items: tuple[str, list[dict]] | None = None
 
     def on_step_end(self, trainer: Trainer) -> None:
@@ -79,7 +82,14 @@ class ValidationSamples(Callback):
         if not items:
             return None
         made = generate_items(
-            trainer.ema, trainer.diffusion, items, trainer.device, steps=self.steps, sampler="ddim", seed=self.seed
+            trainer.ema,
+            trainer.diffusion,
+            items,
+            trainer.device,
+            steps=self.steps,
+            sampler="ddim",
+            seed=self.seed,
+            physics=self.physics,
         )
         path = self.out / "samples" / f"step-{trainer.step:06d}.png"
         path.parent.mkdir(parents=True, exist_ok=True)

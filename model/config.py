@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, fields, replace
 
 # The condition's components, joined by "+" in any order (validated in ModelConfig):
 # plane: the paper's H(F), a wrench plane beside the object image; embedding: a learned wrench
@@ -57,6 +57,7 @@ class ModelConfig:
     target: str = "frame"  # one of TARGETS; physics_residual measured in docs/results/markers128-physics
 
     def __post_init__(self):
+        self._check_types()
         parts = str(self.conditioning).split("+")
         if (
             not isinstance(self.conditioning, str)
@@ -83,6 +84,30 @@ class ModelConfig:
             )
         if not 0.0 <= self.cond_dropout < 1.0:
             raise ValueError(f"cond_dropout must be in [0, 1), got {self.cond_dropout}")
+
+    def _check_types(self) -> None:
+        """Every field of its default's type (a checkpoint's or a file's "many" is named, not
+        formatted into a Python error): ValueError naming the field, the value and the type."""
+        for f in fields(self):
+            value, default = getattr(self, f.name), f.default
+            if isinstance(default, bool):
+                ok, what = isinstance(value, bool), "true or false"
+            elif isinstance(default, int):
+                ok, what = isinstance(value, int) and not isinstance(value, bool) and value > 0, "a whole number > 0"
+            elif isinstance(default, float):
+                ok = isinstance(value, (int, float)) and not isinstance(value, bool) and value == value
+                what = "a number"
+            elif isinstance(default, tuple):
+                ok = (
+                    isinstance(value, tuple)
+                    and bool(value)
+                    and all(isinstance(v, int) and not isinstance(v, bool) and v > 0 for v in value)
+                )
+                what = "a list of whole numbers > 0"
+            else:
+                ok, what = isinstance(value, str), "text"
+            if not ok:
+                raise ValueError(f"{f.name} must be {what}, got {value!r}")
 
     @property
     def uses_plane(self) -> bool:

@@ -53,3 +53,4 @@ class Evaluation:
     sweep_summary: list[dict] = field(default_factory=list)  # force_sweep.summarise of each
     sweep_ranges: dict[str, tuple[float, float]] = field(default_factory=dict)
     sweep_note: str = ""  # how the sweep was made, or why there is none
+    profiles: dict[str, str] = field(default_factory=dict)  # run file → the sensor profile its physics row used

@@ -19,10 +19,10 @@ from pathlib import Path
 from typing import Callable
 
 import cv2
-import h5py
 import numpy as np
 
 from acquisition import schema as S
+from acquisition.run_reader import RunReader
 from acquisition.schema import RIG_CONFIG_MARK
 from common.eta import Eta
 from dataset.torch_dataset import TactileDataset, spread, uint8_tensor_to_image
@@ -90,7 +90,15 @@ def evaluate_parts(
     log: Callable[[str], None] = lambda line: None,
     **kwargs,
 ) -> list[Evaluation]:
-    """Every test part of the split (``parts``; default ``test_parts``), the model loaded once."""
+    """Every test part of the split (``parts``; default ``test_parts``), the model loaded once.
+    With the physics row (the default), every run's profile is settled first: a run that records
+    none, with no ``profile`` given, is refused before anything is generated (NoProfile)."""
+    from dataset.split import check_unchanged, load_split
+
+    manifest, _ = load_split(split_dir)
+    check_unchanged(manifest, split_dir)  # a run file changed since the split: refused before anything loads
+    if kwargs.get("baseline", True):
+        _check_profiles(split_dir, kwargs.get("profile"))
     model = TrainedModel.load(run_dir, device=device)
     out = []
     for part in parts or test_parts(split_dir):
@@ -144,11 +152,14 @@ def evaluate_part(
         from sensor_sim.profile import load_profile
 
         sensor = load_profile(profile) if profile is not None else None  # a bad file: ProfileError, one line
+        runs = sorted({int(it["run"]) for it in items})
+        sources = _profiles(data, runs, sensor)  # a run without a profile, none given: NoProfile, refused
+        ev.profiles = {data.runs[r]: sources[r] for r in runs}
         try:
             rows = np.array([[it["run"], it["frame"]] for it in items])
             poses = np.stack([it["pose"].numpy() for it in items])
-            which = f"sensor profile {sensor.name} ({sensor.path})" if sensor else "each run's sensor profile"
-            log(f"physics render of {len(items)} frames with {which}")
+            for r in runs:
+                log(f"physics render of {data.runs[r]}: sensor profile {sources[r]}")
             rendered, seconds = render_frames(data.runs, rows, poses, model.cfg.image_size, sensor)
             ev.baseline = _score(PHYSICS, real, rendered, seconds, markers)
             ev.examples[PHYSICS] = [rendered[i] for i in ex]
@@ -181,6 +192,37 @@ def evaluate_part(
     else:
         ev.sweep_note = "not asked for (--no-force-sweep)"
     return ev
+
+
+def _check_profiles(split_dir: str | Path, profile: str | Path | None) -> None:
+    """NoProfile for the first run of the split that records no sensor profile, unless ``profile``."""
+    from dataset.split import load_split
+    from model.baseline import no_profile
+
+    if profile is not None:
+        return
+    manifest, _ = load_split(split_dir)
+    for run in manifest["runs"]:
+        if not str(run["sensor_profile"]).strip():
+            raise no_profile(run["path"], "the physics row", "--profile FILE, or --no-baseline")
+
+
+def _profiles(data: TactileDataset, runs: list[int], sensor) -> dict[int, str]:
+    """The profile that renders each run's physics row, in words; NoProfile (one line, the command
+    fails before anything is generated) for a run that records none when no --profile is given.
+    A recorded profile that cannot be found again is the row's note (BaselineUnavailable)."""
+    from model.baseline import BaselineUnavailable, NoProfile, no_profile, profile_source
+
+    out = {}
+    for r in runs:
+        record = str(data.manifest["runs"][r]["sensor_profile"])
+        try:
+            out[r] = profile_source(data.runs[r], record, sensor)
+        except NoProfile:
+            raise no_profile(data.runs[r], "the physics row", "--profile FILE, or --no-baseline") from None
+        except BaselineUnavailable as exc:
+            out[r] = f"unavailable: {exc}"
+    return out
 
 
 def _force_sweep(ev, model, split_dir, data, items, opts: SweepOptions, seed, markers, profile, log, clock) -> None:
@@ -280,8 +322,8 @@ def _train_percentiles(split_dir, data: TactileDataset, qs) -> dict:
     train = parts["train"]
     wrench = []
     for r in np.unique(train[:, 0]):
-        with h5py.File(data.runs[int(r)], "r", swmr=True) as f:
-            wrench.append(f[S.WRENCH][()][train[train[:, 0] == r][:, 1]])
+        with RunReader.open(data.runs[int(r)]) as f:
+            wrench.append(f.rows[S.WRENCH][train[train[:, 0] == r][:, 1]])
     values = np.percentile(np.concatenate(wrench), qs, axis=0)
     return {f"p{q}": row.tolist() for q, row in zip(qs, values)}
 
@@ -340,8 +382,8 @@ def _context(model: TrainedModel, data: TactileDataset, part: str, frames: int) 
 
 
 def _simulated(run_path: str) -> bool:
-    with h5py.File(run_path, "r", swmr=True) as f:
-        return str(f.attrs.get(S.ATTR_RIG_CONFIG, "")).startswith(RIG_CONFIG_MARK)
+    with RunReader.open(run_path) as f:
+        return f.text(S.ATTR_RIG_CONFIG).startswith(RIG_CONFIG_MARK)
 
 
 def _references(data: TactileDataset, runs: list[int], size: int) -> list[np.ndarray]:
@@ -349,8 +391,8 @@ def _references(data: TactileDataset, runs: list[int], size: int) -> list[np.nda
 
     cache: dict[int, np.ndarray] = {}
     for run in set(runs):
-        with h5py.File(data.runs[run], "r", swmr=True) as f:
-            ref = f[S.REFERENCE_FRAME][()]
+        with RunReader.open(data.runs[run]) as f:
+            ref = f.image(S.REFERENCE_FRAME)
         cache[run] = ref if ref.shape[0] == size else cv2.resize(ref, (size, size), interpolation=cv2.INTER_AREA)
     return [cache[r] for r in runs]
 

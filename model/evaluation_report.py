@@ -77,6 +77,7 @@ def write_report(evs: list[Evaluation], out: str | Path, *, title: str) -> Path:
             "model": [asdict(r) for r in ev.rows],
             "physics_render": asdict(ev.baseline) if ev.baseline else None,
             "physics_render_note": ev.baseline_note,
+            "physics_render_profiles": ev.profiles,
             "force_sweep": ev.sweep_summary,
             "force_sweep_ranges": ev.sweep_ranges,
             "force_sweep_note": ev.sweep_note,
@@ -110,6 +111,9 @@ def _part_section(ev: Evaluation, out: Path, suffix: str) -> list[str]:
         lines.append(_fmt_row("physics render: the simulator's mechanics + lighting at the measured pose", ev.baseline))
     for name, mse_, mae_, ssim_, psnr_ in PAPER_ROWS:
         lines.append(f"| {name} (paper's table, real data, 256 px) | {mse_} | {mae_} | {ssim_} | {psnr_} | — | — | — |")
+    if ev.profiles:
+        lines += ["", "Sensor profile of the physics render, per run file:", ""]
+        lines += [f"- `{Path(run).name}`: {text}" for run, text in ev.profiles.items()]
     if ev.baseline is None:
         lines += ["", f"No physics-render row: {ev.baseline_note}"]
     elif ev.simulated:

@@ -14,7 +14,7 @@ sensor's markers and leaves a sensor without markers unchanged, as the simulator
 ``summarise`` gives Spearman's ρ of each measure against the force, its least-squares
 slope, the sign consistency of successive steps, and the error against the reference.
 
-numpy, OpenCV and h5py only: the generator is a callable, so every measure here is
+numpy, OpenCV and the verified run-file reader only: the generator is a callable, so every measure here is
 tested on synthetic frames without a network.
 """
 
@@ -26,11 +26,11 @@ from dataclasses import dataclass, field
 from typing import Callable, Sequence
 
 import cv2
-import h5py
 import numpy as np
 from numpy.typing import ArrayLike
 
 from acquisition import schema as S
+from acquisition.run_reader import RunReader
 from common.eta import Eta
 
 COMPONENTS = {"Fz": 2, "Fx": 0, "Fy": 1, "Mz": 5}  # the swept components, index into the six-axis wrench
@@ -416,18 +416,18 @@ class RunData:
 
     @classmethod
     def load(cls, path: str, size: int) -> "RunData":
-        with h5py.File(path, "r", swmr=True) as f:
-            wrench, pose = f[S.WRENCH][()], f[S.POSE_MEASURED][()]
-            ref = f[S.REFERENCE_FRAME][()]
-            mm_per_px = float(f.attrs.get(S.ATTR_MM_PER_PX, float("nan")))
+        with RunReader.open(path) as f:
+            wrench, pose = f.rows[S.WRENCH], f.rows[S.POSE_MEASURED]
+            ref = f.image(S.REFERENCE_FRAME)
+            mm_per_px = f.number(S.ATTR_MM_PER_PX)
         if not (math.isfinite(mm_per_px) and mm_per_px > 0):
             raise ValueError(f"{path}: mm_per_px {mm_per_px} is not a finite number > 0: no contact area in mm²")
         frame_px = ref.shape[1]
         return cls(path, wrench, pose, _resize(ref, size), mm_per_px * frame_px / size, size)
 
     def frame(self, i: int) -> np.ndarray:
-        with h5py.File(self.path, "r", swmr=True) as f:
-            return _resize(f[S.FRAMES][i], self.size)
+        with RunReader.open(self.path) as f:
+            return _resize(f.frame(i), self.size)
 
 
 def _resize(img: np.ndarray, size: int) -> np.ndarray:

@@ -20,28 +20,28 @@ from model.physics_condition import PhysicsSpec, resize
 from model.registry import build_network
 
 
-def add_physics(items: list[dict], size: int) -> None:
+def add_physics(items: list[dict], size: int, spec: PhysicsSpec) -> None:
     """Give each item without one its ``physics`` field: the physics render of its run frame at its
-    measured pose and wrench (what the training cache holds, model/physics_condition.py), rendered
-    now from its ``run_path``: the wrench is the item's ``wrench_raw`` (N, N·mm) where it has one
+    measured pose and wrench through the model's ``spec`` (what the training cache holds,
+    model/physics_condition.py), rendered now from its ``run_path``: the wrench is the item's
+    ``wrench_raw`` (N, N·mm) where it has one
     (a force sweep's), else the run's recorded one at its frame; an item marked ``depth_from_fz``
     is rendered at the depth where the simulator's contact gives that wrench's Fz (as `generate`
     renders a pose given without z). The item keeps the render, so a second sampler setting does
     not render it again."""
-    import h5py
+    from acquisition.run_reader import RunReader
 
-    from model.baseline import PhysicsRender
-
-    renderers: dict[str, PhysicsRender] = {}
+    renderers: dict = {}
     recorded: dict[str, np.ndarray] = {}
     for it in items:
         if "physics" in it:
             continue
         path = it["run_path"]
         if path not in renderers:
-            renderers[path] = PhysicsRender(path, background="simulator")
-            with h5py.File(path, "r", swmr=True) as f:
-                recorded[path] = f[S.WRENCH][()]
+            with RunReader.open(path) as run:
+                obj = run.text(S.ATTR_OBJECT)
+                recorded[path] = run.rows[S.WRENCH]
+            renderers[path] = spec.renderer(obj, where=path)
         raw = it.get("wrench_raw")
         wrench = np.asarray(raw, dtype=float) if raw is not None else recorded[path][int(it["frame"])]
         pose = it["pose"].numpy().astype(float)
@@ -62,16 +62,20 @@ def generate_items(
     seed: int,
     guidance: float = 1.0,
     batch_size: int = 64,
+    physics: PhysicsSpec | None = None,
 ):
     """Generated frames (BGR uint8), in order, for Dataset items (their condition and wrench),
     ``batch_size`` at a time from one noise stream seeded with ``seed``. A physics-conditioned
-    network gets each item's physics render: the item's own, else rendered (``add_physics``)."""
+    network gets each item's physics render: the item's own, else rendered through ``physics``
+    (the model's PhysicsSpec, ``add_physics``)."""
     cfg = getattr(net, "cfg", None)
     g = torch.Generator(device=device).manual_seed(seed)
     for lo in range(0, len(items), batch_size):
         chunk = items[lo : lo + batch_size]
-        if cfg is not None and cfg.uses_physics:
-            add_physics(chunk, cfg.image_size)
+        if cfg is not None and cfg.uses_physics and any("physics" not in it for it in chunk):
+            if physics is None:
+                raise ValueError(f"a {cfg.conditioning!r} model needs its physics render's record to generate")
+            add_physics(chunk, cfg.image_size, physics)
         cond = scale_images(torch.stack([condition_of(it) for it in chunk]).to(device))
         wrench = torch.stack([it["wrench"] for it in chunk]).to(device)
         out = diffusion.sample(net, cond, wrench, steps=steps, sampler=sampler, guidance=guidance, generator=g)
@@ -192,8 +196,8 @@ class TrainedModel:
         return self._renderers[object_name]
 
     def generate_items(self, items: list[dict], **kwargs):
-        """``generate_items`` with this model's EMA weights."""
-        return generate_items(self.net, self.diffusion, items, self.device, **kwargs)
+        """``generate_items`` with this model's EMA weights (and physics render)."""
+        return generate_items(self.net, self.diffusion, items, self.device, physics=self.physics, **kwargs)
 
     def generate_split(
         self,

@@ -10,7 +10,9 @@ split (``physics_cache``); ``TactileDataset(physics=...)`` serves them as the ``
 field. Inference renders the same image from what the checkpoint records (``PhysicsSpec``).
 
 Every run of the split must show a library object (the simulator knows its shape) and share one
-sensor kind and one sensor profile; otherwise ``PhysicsUnavailable`` says which run and why.
+sensor kind and one sensor profile, which each run records (``train --profile FILE`` gives one for
+runs that record none: a real sensor's, an import without ``--profile``; it is never guessed);
+otherwise ``PhysicsUnavailable`` says which run and why.
 """
 
 from __future__ import annotations
@@ -23,12 +25,12 @@ from pathlib import Path
 from typing import Callable
 
 import cv2
-import h5py
 import numpy as np
 
 from acquisition import schema as S
-from dataset.split import load_split
-from model.baseline import BaselineUnavailable, ObjectRender
+from acquisition.run_reader import RunReader
+from dataset.split import check_unchanged, load_split
+from model.baseline import BaselineUnavailable, NoProfile, ObjectRender, no_profile
 
 CACHE_DIR = "physics"  # inside the split directory
 CACHE_VERSION = 2  # bump when the render or the cache layout changes: every cache is rebuilt
@@ -38,20 +40,28 @@ class PhysicsUnavailable(BaselineUnavailable):
     """Physics conditioning asked for where the simulator cannot render the frames (one line)."""
 
 
+class PhysicsNoProfile(PhysicsUnavailable, NoProfile):
+    """Physics conditioning of a run that records no sensor profile, with no ``--profile`` given."""
+
+
 @dataclass(frozen=True)
 class PhysicsSpec:
     """What renders a split's physics channels; recorded in a physics model's checkpoint."""
 
     sensor_kind: str
-    profile_record: str  # the runs' sensor_profile attribute ("" : the shipped default profile)
+    profile_record: str  # the profile's record: the runs' sensor_profile attribute, or train --profile's
     mm_per_px: float  # the frames' scale...
     frame_px: int  # ...at this many pixels across (the render's size before resizing)
 
     def profile(self, where: str = "checkpoint"):
-        from sensor_sim.profile import ProfileError, default_profile, profile_from_record
+        from sensor_sim.profile import ProfileError, profile_from_record
 
-        if not self.profile_record:
-            return default_profile()
+        if not self.profile_record.strip():
+            raise PhysicsNoProfile(
+                f"{where}: [physics] profile_record is empty: this model was trained before a run said which "
+                "sensor profile it has, so its physics channels' profile is unknown; retrain it (train --profile FILE "
+                "for runs without one)"
+            )
         try:
             return profile_from_record(self.profile_record, where=where)
         except ProfileError as exc:
@@ -80,18 +90,19 @@ class PhysicsSpec:
         return asdict(self)
 
 
-def split_spec(split_dir: str | Path) -> PhysicsSpec:
-    """The split's PhysicsSpec, or PhysicsUnavailable naming the run the simulator cannot render."""
+def split_spec(split_dir: str | Path, profile=None) -> PhysicsSpec:
+    """The split's PhysicsSpec, or PhysicsUnavailable naming the run the simulator cannot render.
+    ``profile``: a SensorProfile for every run (``train --profile``); default: each run's recorded
+    one, which must be the same for all (a run that records none: PhysicsNoProfile)."""
     from objects.indenters import INDENTERS
 
     manifest, _ = load_split(split_dir)
+    check_unchanged(manifest, split_dir)
     specs = set()
     for run in manifest["runs"]:
         path = run["path"]
-        with h5py.File(path, "r", swmr=True) as f:
-            attrs = dict(f.attrs)
-            h, w = f[S.FRAMES].shape[1:3]
-        obj = str(attrs.get(S.ATTR_OBJECT, ""))
+        obj = run["object"]
+        h, w = run["frame_shape"][:2]
         if obj not in INDENTERS:
             raise PhysicsUnavailable(
                 f"{path}: object {obj!r} is not one the simulator knows ({', '.join(INDENTERS)}): no physics "
@@ -99,12 +110,11 @@ def split_spec(split_dir: str | Path) -> PhysicsSpec:
             )
         if h != w:
             raise PhysicsUnavailable(f"{path}: frames are {w}x{h}; the simulator renders a square pad")
-        record = attrs.get(S.ATTR_SENSOR_PROFILE, "")
-        record = record.decode() if isinstance(record, bytes) else str(record)
-        mm = float(attrs.get(S.ATTR_MM_PER_PX, float("nan")))
-        if not (np.isfinite(mm) and mm > 0):
-            raise PhysicsUnavailable(f"{path}: mm_per_px {mm!r} is not a positive scale: no physics render")
-        specs.add(PhysicsSpec(str(attrs.get(S.ATTR_SENSOR_KIND, "rgb")), record, mm, int(w)))
+        record = profile.record() if profile is not None else run["sensor_profile"]
+        if not record.strip():
+            raise PhysicsNoProfile(str(no_profile(path, "physics conditioning", "train --profile FILE")))
+        mm = float(run["mm_per_px"])
+        specs.add(PhysicsSpec(run["sensor"], record, mm, int(w)))
     if len(specs) != 1:
         detail = "; ".join(f"{s.sensor_kind}, {s.mm_per_px:g} mm/px, {s.frame_px} px" for s in specs)
         raise PhysicsUnavailable(
@@ -116,16 +126,15 @@ def split_spec(split_dir: str | Path) -> PhysicsSpec:
     return spec
 
 
-def cache_key(split_dir: str | Path, part: str, size: int) -> dict:
-    """What the cache depends on: the runs' fingerprints, the part's rows, the size, the render's inputs."""
+def cache_key(split_dir: str | Path, part: str, size: int, spec: PhysicsSpec) -> dict:
+    """What the cache depends on: the runs' identities, the part's rows, the size, the render's inputs."""
     manifest, parts = load_split(split_dir)
-    spec = split_spec(split_dir)
     return {
         "version": CACHE_VERSION,
         "part": part,
         "size": int(size),
         "rows_sha1": hashlib.sha1(np.ascontiguousarray(parts[part]).tobytes()).hexdigest(),
-        "runs": [[r["path"], r.get("fingerprint", "")] for r in manifest["runs"]],
+        "runs": [[r["path"], r["identity"]["sha256"]] for r in manifest["runs"]],
         "spec": spec.to_meta(),
     }
 
@@ -135,13 +144,18 @@ def cache_path(split_dir: str | Path, part: str, size: int) -> Path:
 
 
 def physics_cache(
-    split_dir: str | Path, part: str, size: int, *, log: Callable[[str], None] = lambda line: None
+    split_dir: str | Path,
+    part: str,
+    size: int,
+    spec: PhysicsSpec | None = None,
+    *,
+    log: Callable[[str], None] = lambda line: None,
 ) -> Path:
-    """The part's physics renders at ``size`` px, (frames, size, size, 3) BGR uint8 in the split's
-    row order, as a .npy beside a .json of its key; rebuilt when the key differs (other runs,
-    rows, size, profile or render version). Returns the .npy's path."""
+    """The part's physics renders at ``size`` px through ``spec`` (default: ``split_spec``'s), (frames, size,
+    size, 3) BGR uint8 in the split's row order, as a .npy beside a .json of its key; rebuilt when
+    the key differs (other runs, rows, size, profile or render version). Returns the .npy's path."""
     path = cache_path(split_dir, part, size)
-    key = cache_key(split_dir, part, size)
+    key = cache_key(split_dir, part, size, spec or split_spec(split_dir))
     meta = path.with_suffix(".json")
     if path.is_file() and meta.is_file():
         try:
@@ -163,10 +177,10 @@ def physics_cache(
         run = int(run)
         if run not in renderers:
             run_path = manifest["runs"][run]["path"]
-            with h5py.File(run_path, "r", swmr=True) as f:
-                obj = str(f.attrs.get(S.ATTR_OBJECT, ""))
-                poses[run] = f[S.POSE_MEASURED][()]
-                wrenches[run] = f[S.WRENCH][()]
+            with RunReader.open(run_path) as f:
+                obj = f.text(S.ATTR_OBJECT)
+                poses[run] = f.rows[S.POSE_MEASURED]
+                wrenches[run] = f.rows[S.WRENCH]
             renderers[run] = spec.renderer(obj, where=run_path)
         images[k] = resize(renderers[run].render(poses[run][int(frame)], wrenches[run][int(frame)]), size)
         if (k + 1) % step == 0 or k + 1 == len(rows):

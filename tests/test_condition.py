@@ -87,7 +87,7 @@ def test_generate_physics_channels_equal_training_ones(tmp_path, frame_px, size,
     model.cfg = replace(model.cfg, conditioning="physics+plane")
     model.physics = split_spec(split)
     items = [plain[i] for i in range(len(plain))]
-    add_physics(items, size)
+    add_physics(items, size, model.physics)
     with h5py.File(data.runs[0], "r") as f:
         recorded = f[S.WRENCH][()]
     for i in range(len(data)):

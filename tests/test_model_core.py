@@ -94,20 +94,25 @@ def test_presets_and_config_errors():
         ModelConfig(conditioning="telepathy")
 
 
-def write_run(path, obj, rows, *, kind="rgb", reference=None):
+def write_run(path, obj, rows, *, kind="rgb", reference=None, profile=None):
     """A complete run file of library object ``obj`` written through RunWriter, one frame per
     row of ``rows``: (frame, wrench, pose_commanded, pose_measured); square frames at 14 mm
-    across, background ``reference`` (default black)."""
+    across, background ``reference`` (default black). ``profile``: the sensor profile record it
+    keeps (default: the shipped profile's, as a simulated run records it; "": none, a real sensor's)."""
     import numpy as np
 
     from acquisition.run_file import RunHeader, RunWriter
     from objects.indenters import get_indenter
     from protocols.plan import PHASES
+    from sensor_sim.profile import default_profile
 
     rows = list(rows)
     shape = rows[0][0].shape
     size = shape[0]
-    header = RunHeader("t", "", "", obj, "", kind, 14 / size, 1.0, len(rows), (0, 0, 0, 0), PHASES)
+    record = default_profile().record() if profile is None else profile
+    header = RunHeader(
+        "t", "", "", obj, "", kind, 14 / size, 1.0, len(rows), (0, 0, 0, 0), PHASES, sensor_profile=record
+    )
     w = RunWriter.create(
         path,
         header,
@@ -134,8 +139,9 @@ def write_run(path, obj, rows, *, kind="rgb", reference=None):
     return path
 
 
-def make_split_dir(tmp_path, n=24, size=16, kind="rgb"):
-    """A small real split: run files via RunWriter, split 8:2 (sensor ``kind`` recorded)."""
+def make_split_dir(tmp_path, n=24, size=16, kind="rgb", profile=None):
+    """A small real split: run files via RunWriter, split 8:2 (sensor ``kind`` and ``profile``
+    recorded, write_run's default: the shipped profile)."""
     import numpy as np
 
     from dataset.split import make_split
@@ -150,7 +156,7 @@ def make_split_dir(tmp_path, n=24, size=16, kind="rgb"):
         )
         for i in range(n)
     )
-    write_run(tmp_path / "r.h5", "sphere10mm", rows, kind=kind)
+    write_run(tmp_path / "r.h5", "sphere10mm", rows, kind=kind, profile=profile)
     make_split([tmp_path / "r.h5"], "8:2", tmp_path / "split")
     return tmp_path / "split"
 

@@ -190,12 +190,14 @@ def test_physics_is_refused_for_an_object_the_simulator_does_not_know(tmp_path):
     from typer.testing import CliRunner
 
     from cli.model_app import app
+    from dataset.split import make_split
     from model.physics_condition import PhysicsUnavailable, split_spec
 
     split = make_split_dir(tmp_path)
     run = json.loads((split / "split.json").read_text())["runs"][0]["path"]
     with h5py.File(run, "r+") as f:
         f.attrs["object_name"] = "my_mug"
+    make_split([run], "8:2", split)  # the split made again: the file changed since the first
     with pytest.raises(PhysicsUnavailable, match="'my_mug' is not one the simulator knows"):
         split_spec(split)
     result = CliRunner().invoke(
@@ -289,7 +291,7 @@ def test_a_swept_fz_is_rendered_at_the_depth_that_gives_it(tmp_path):
     from dataset.torch_dataset import TactileDataset, uint8_tensor_to_image
     from model.baseline import PhysicsRender
     from model.inference import add_physics
-    from model.physics_condition import resize
+    from model.physics_condition import resize, split_spec
     from sensor_sim.load_match import depth_for_force
 
     split = make_split_dir(tmp_path, n=24, size=32)
@@ -301,7 +303,7 @@ def test_a_swept_fz_is_rendered_at_the_depth_that_gives_it(tmp_path):
         it = data[3]
         it["wrench_raw"] = np.array([0.0, 0.0, fz, 0.0, 0.0, 0.0])
         it["depth_from_fz"] = True
-        add_physics([it], 32)
+        add_physics([it], 32, split_spec(split))
         depth = depth_for_force(render.contact.solver, x, y, theta, fz)
         expected = resize(render.render(np.array([x, y, -depth, theta]), it["wrench_raw"]), 32)
         assert np.array_equal(uint8_tensor_to_image(it["physics"]), expected)

@@ -1,0 +1,241 @@
+"""The one read path for run files: opened, checked against the schema and verified as it is read.
+
+``RunReader.open(path)`` refuses, in one line naming the file, the dataset and the frame, any file
+that ``dataset validate`` would refuse for its form or content (acquisition/run_checks.py):
+
+* the file itself: missing, cut short (its superblock records its length), not HDF5, a codec this
+  installation cannot decode (``open_for_reading``, within a second);
+* the schema: every dataset and root attribute of the table with its dtype and shape, checksums on
+  every growing dataset (or on none: a file written before them), a status of the schema's, text
+  that is UTF-8;
+* the rows, read in full (their chunks' checksums checked by HDF5): one per frame (exactly one once
+  the run is closed), finite numbers, time increasing, the capture grid contiguous from 0, phases
+  within the file's own list, levels not negative; the full-rate stream finite and never going
+  back in time; the object image and the reference frame readable.
+
+Frames are verified as they are read (``frame``: HDF5 checks the chunk's checksum; a chunk never
+written is refused, not read as zeros), or all at once without decoding (``verify_frames``:
+acquisition/chunk_checksum.py), as ``dataset split``, ``compact``, ``merge``, ``export`` and
+``--resume`` do. What the reader leaves to ``dataset validate`` are its judgements: black, constant
+or saturated frames, wrench–frame skew beyond a threshold, and whether a run completed (``split``
+asks that itself).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+from acquisition import schema as S
+from acquisition.chunk_checksum import bad_chunks
+from acquisition.hdf5_open import check_complete, open_swmr_read
+from acquisition.run_checks import (
+    checksum_findings,
+    first_line,
+    image_findings,
+    metadata_problem,
+    read_rows,
+    read_stream,
+    row_count_findings,
+    row_findings,
+    status_findings,
+)
+from acquisition.run_layout import attr_problems, decode_phases, field_problems, frame_filter_problems
+from acquisition.writer_lock import RunFileError, live_writer
+
+__all__ = ["RunReader", "open_for_reading"]
+
+
+def open_for_reading(path: str | Path) -> h5py.File:
+    """A run file for reading, also while it is being written or after its writer crashed: the file
+    checks only (present, complete, HDF5, codecs decodable). ``RunReader.open`` checks the rest.
+
+    Fails within a second, naming the file, when the file is cut short or damaged.
+    """
+    path = Path(path)
+    if not path.exists():
+        raise RunFileError(f"{path}: no such file")
+    if path.is_dir():
+        raise RunFileError(f"{path}: is a folder, expected a run file (.h5)")
+    try:
+        problem = check_complete(path)
+    except OSError as exc:
+        raise RunFileError(f"{path}: cannot be read ({exc.strerror})") from None
+    # A live writer may be between growing the file and writing its new end.
+    if problem and not (problem.startswith("truncated:") and live_writer(path)):
+        raise RunFileError(f"{path}: {problem}")
+    try:
+        f = open_swmr_read(path)
+    except (OSError, RuntimeError, KeyError) as exc:
+        raise RunFileError(f"{path}: not a readable HDF5 run file ({first_line(exc)})") from None
+    undecodable = frame_filter_problems(f)
+    if undecodable:
+        f.close()
+        raise RunFileError(f"{path}: {S.FRAMES}: {undecodable[0]}")
+    return f
+
+
+def refusal(path: Path, problems: list[str]) -> RunFileError:
+    """One line for a file with ``problems``: the first, and how many more validate lists."""
+    more = f" (and {len(problems) - 1} more problem(s): dataset validate lists them)" if len(problems) > 1 else ""
+    return RunFileError(f"{path}: {problems[0]}{more}")
+
+
+class RunReader:
+    """A verified run file (see the module docstring). ``rows`` holds every per-frame field's first
+    ``n`` rows (an optional field the file lacks: its fill value), read and checked at open."""
+
+    def __init__(self, path: Path, f: h5py.File):
+        self.path = path
+        self.f = f
+        self.n = 0
+        self.rows: dict[str, np.ndarray] = {}
+        self.images: dict[str, np.ndarray] = {}
+        self.status = self.reason = ""
+        self.notes: list[str] = []
+        self._stream: np.ndarray | None = None
+
+    # -- opening ------------------------------------------------------------------------
+    @classmethod
+    def open(cls, path: str | Path) -> "RunReader":
+        """The run at ``path``, verified (module docstring); RunFileError, one line, when it is not sound."""
+        path = Path(path)
+        f = open_for_reading(path)
+        reader = cls(path, f)
+        try:
+            problems = reader._verify()
+        except (OSError, RuntimeError, KeyError, ValueError) as exc:  # damage beyond what the checks expect
+            problems = [f"unreadable ({first_line(exc)})"]
+        if problems:
+            f.close()
+            raise refusal(path, problems)
+        return reader
+
+    def _verify(self) -> list[str]:
+        f = self.f
+        damaged = metadata_problem(f)
+        if damaged:
+            return [damaged]
+        fields = field_problems(f)
+        missing = [name for name, p in fields.items() if p == "missing"]
+        if missing:
+            return [f"not a run file: missing {', '.join(missing)}"]
+        problems = [f"malformed run file: {name}: {p}" for name, p in fields.items()]
+        problems += [f"malformed run file: attribute {name}: {p}" for name, p in attr_problems(f).items()]
+        if problems:
+            return problems
+        sound = {fl.path for fl in S.FIELDS if fl.path in f}
+        problems, self.notes = checksum_findings(f, sound)
+        self.status, self.reason, found = status_findings(f, sound)
+        problems += found
+        self.n = f[S.FRAMES].shape[0]
+        problems += row_count_findings(f, sound, self.n, self.status)
+        present = [fl.path for fl in S.PER_FRAME_FIELDS if fl.path in sound]
+        if problems:
+            return problems
+        self.rows, problems = read_rows(f, present, self.n)
+        for fl in S.PER_FRAME_FIELDS:
+            if fl.path not in self.rows and not problems:  # an older file: the table's fill value
+                self.rows[fl.path] = np.full((self.n, *fl.shape), fl.fill, dtype=fl.dtype)
+        problems += row_findings(self.rows, self.n, len(self.phases))
+        if S.WRENCH_STREAM in sound:
+            self._stream, found = read_stream(f, S.WRENCH_STREAM)
+            problems += found
+        self.images, found = image_findings(f, sound)
+        return problems + found
+
+    # -- what it holds ------------------------------------------------------------------
+    @property
+    def attrs(self) -> h5py.AttributeManager:
+        return self.f.attrs
+
+    def text(self, name: str, default: str = "") -> str:
+        """A root attribute as text (an optional one the file lacks: ``default``)."""
+        value = self.f.attrs.get(name)
+        if value is None:
+            return default
+        return value.decode("utf-8", "replace") if isinstance(value, bytes) else str(value)
+
+    def number(self, name: str) -> float:
+        return float(self.f.attrs[name])
+
+    @property
+    def phases(self) -> tuple[str, ...]:
+        return decode_phases(self.f)
+
+    @property
+    def frame_shape(self) -> tuple[int, int, int]:
+        h, w, c = self.f[S.FRAMES].shape[1:]
+        return int(h), int(w), int(c)
+
+    @property
+    def sensor_profile(self) -> str:
+        """The recorded sensor profile (``SensorProfile.record()`` text), "" when the run has none."""
+        return self.text(S.ATTR_SENSOR_PROFILE).strip()
+
+    @property
+    def stream(self) -> np.ndarray | None:
+        """The full-rate wrench stream (verified at open); None when the file has none."""
+        return self._stream
+
+    def image(self, name: str) -> np.ndarray:
+        """The object image or the reference frame (read and checked at open)."""
+        return self.images[name]
+
+    def frame(self, i: int) -> np.ndarray:
+        """Frame ``i``; RunFileError naming the file and the frame when its chunk is missing or damaged."""
+        if not 0 <= i < self.n:
+            raise RunFileError(f"{self.path}: {S.FRAMES}[{i}]: no such frame (the run has {self.n})")
+        d = self.f[S.FRAMES]
+        try:
+            if d.chunks is not None and d.id.get_chunk_info_by_coord((i, 0, 0, 0)).byte_offset is None:
+                raise RunFileError(f"{self.path}: {S.FRAMES}[{i}]: never written (no chunk on disk)")
+            return d[i]
+        except (OSError, RuntimeError, ValueError) as exc:
+            raise RunFileError(
+                f"{self.path}: {S.FRAMES}[{i}]: checksum mismatch or missing bytes ({first_line(exc)}); "
+                "the file is damaged"
+            ) from None
+
+    def frame_problems(self, upto: int | None = None) -> list[str]:
+        """Every frame chunk of frames 0..upto-1 (default: all) checked against its checksum without
+        decoding it: the problems, one line each naming the frame (empty when sound)."""
+        d = self.f[S.FRAMES]
+        upto = self.n if upto is None else upto
+        if d.chunks is None:  # contiguous frames (never written so): read them through HDF5
+            return self._contiguous_problems(upto) if upto else []
+        return [
+            f"{S.FRAMES}[{lo}]: {problem}" if lo == hi else f"{S.FRAMES}[{lo}:{hi + 1}]: {problem}"
+            for lo, hi, problem in bad_chunks(d, upto)
+        ]
+
+    def _contiguous_problems(self, upto: int) -> list[str]:
+        try:
+            self.f[S.FRAMES][:upto]
+        except (OSError, RuntimeError) as exc:
+            return [f"{S.FRAMES}: unreadable ({first_line(exc)})"]
+        return []
+
+    def verify_frames(self) -> None:
+        """``frame_problems`` as a RunFileError (one line naming the first damaged frame)."""
+        problems = self.frame_problems()
+        if problems:
+            why = (
+                "the run is still running or its writer crashed: `rig run-protocol --resume` keeps the frames "
+                "that reached the disk"
+                if self.status == "running"
+                else "the file is damaged"
+            )
+            raise refusal(self.path, [f"{problems[0]}; {why}", *problems[1:]])
+
+    # -- closing ------------------------------------------------------------------------
+    def close(self) -> None:
+        self.f.close()
+
+    def __enter__(self) -> "RunReader":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()

@@ -1,0 +1,141 @@
+"""A split directory read back: ``split.json`` and the part files checked before anything uses them.
+
+``load_split`` checks the manifest key by key (each error names ``split.json``, the key and what was
+expected) and each part's index file (rows of (run, frame) inside the runs the manifest lists).
+``check_unchanged`` compares every run file with the identity the split recorded
+(acquisition/run_identity.py): ``train``, ``evaluate`` and ``generate --split`` read no frame of a
+file that changed since the split verified it.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+from acquisition.run_identity import KEYS as IDENTITY_KEYS
+from acquisition.run_identity import changed_since
+from common.errors import ToolError
+
+MANIFEST = "split.json"
+
+
+class SplitError(ToolError):
+    pass
+
+
+def _whole(v) -> bool:
+    return isinstance(v, int) and not isinstance(v, bool)
+
+
+def _number(v) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+
+
+def _check_run(where: str, run) -> None:
+    if not isinstance(run, dict):
+        raise SplitError(f"{where}: expected an object describing a run file, got {run!r}")
+    expected = {
+        "path": (lambda v: isinstance(v, str) and v, "the run file's path"),
+        "frames": (lambda v: _whole(v) and v >= 0, "a whole number of frames"),
+        "object": (lambda v: isinstance(v, str), "text"),
+        "sensor": (lambda v: isinstance(v, str), "text"),
+        "mm_per_px": (lambda v: _number(v) and v > 0, "a positive number"),
+        "frame_shape": (
+            lambda v: isinstance(v, list) and len(v) == 3 and all(_whole(x) and x > 0 for x in v),
+            "[H, W, C]",
+        ),
+        "sensor_profile": (lambda v: isinstance(v, str), 'the recorded profile\'s text ("": none)'),
+    }
+    for key, (ok, what) in expected.items():
+        if key not in run:
+            raise SplitError(
+                f"{where}.{key}: missing (a split made by an older version: make it again with `dataset split`)"
+            )
+        if not ok(run[key]):
+            raise SplitError(f"{where}.{key}: expected {what}, got {run[key]!r}")
+    ident = run.get("identity")
+    if ident is None:
+        raise SplitError(
+            f"{where}.identity: missing: this split predates recorded file identities, so nothing says its run "
+            "files are the ones it verified; make it again with `dataset split`"
+        )
+    if not (isinstance(ident, dict) and all(k in ident for k in IDENTITY_KEYS)):
+        raise SplitError(f"{where}.identity: expected {{{', '.join(IDENTITY_KEYS)}}}, got {ident!r}")
+    if not (_whole(ident["size"]) and _whole(ident["mtime_ns"]) and isinstance(ident["sha256"], str)):
+        raise SplitError(f"{where}.identity: expected whole numbers size, mtime_ns and text sha256, got {ident!r}")
+
+
+def _check_manifest(path: Path, manifest) -> None:
+    if not isinstance(manifest, dict):
+        raise SplitError(f"{path}: expected a JSON object, got {type(manifest).__name__}")
+    runs = manifest.get("runs")
+    if not isinstance(runs, list) or not runs:
+        raise SplitError(f"{path}: [runs] expected a list of run files, got {runs!r}")
+    for i, run in enumerate(runs):
+        _check_run(f"{path}: [runs][{i}]", run)
+    parts = manifest.get("parts")
+    if not isinstance(parts, dict) or not parts or not all(_whole(v) and v >= 0 for v in parts.values()):
+        raise SplitError(f"{path}: [parts] expected {{part name: frame count}}, got {parts!r}")
+    bad = [name for name in parts if not (isinstance(name, str) and name.isidentifier())]
+    if bad:
+        raise SplitError(f"{path}: [parts] part names must be plain words (train, test, ...), got {bad!r}")
+    for key in ("wrench_mean", "wrench_std"):
+        vec = manifest.get(key)
+        if not (isinstance(vec, list) and len(vec) == 6 and all(_number(v) for v in vec)):
+            raise SplitError(f"{path}: [{key}] expected six finite numbers, got {vec!r}")
+    if not all(v > 0 for v in manifest["wrench_std"]):
+        raise SplitError(f"{path}: [wrench_std] expected positive numbers, got {manifest['wrench_std']!r}")
+
+
+def _load_part(directory: Path, name: str, count: int, runs: list[dict]) -> np.ndarray:
+    path = directory / f"{name}.npy"
+    try:
+        rows = np.load(path, allow_pickle=False)
+    except (OSError, ValueError) as exc:
+        raise SplitError(f"{path}: not a readable index file ({str(exc).strip().splitlines()[0]})") from None
+    if rows.ndim != 2 or rows.shape[1] != 2 or rows.dtype.kind not in "iu":
+        raise SplitError(f"{path}: expected (n, 2) whole-number rows of (run, frame), got {rows.dtype} {rows.shape}")
+    if len(rows) != count:
+        raise SplitError(f"{path}: {len(rows)} rows, {MANIFEST} says the {name} part has {count}")
+    if len(rows):
+        frames = np.array([r["frames"] for r in runs])
+        run, frame = rows[:, 0], rows[:, 1]
+        bad = (run < 0) | (run >= len(runs))
+        bad |= ~bad & ((frame < 0) | (frame >= frames[np.clip(run, 0, len(runs) - 1)]))
+        if bad.any():
+            i = int(np.argmax(bad))
+            raise SplitError(
+                f"{path}: row {i} is (run {run[i]}, frame {frame[i]}), outside the {len(runs)} run(s) of {MANIFEST}"
+            )
+    return rows
+
+
+def load_split(directory: str | Path) -> tuple[dict, dict[str, np.ndarray]]:
+    """(manifest, {part: rows}) of a split directory, checked (module docstring)."""
+    directory = Path(directory)
+    path = directory / MANIFEST
+    if not path.is_file():
+        raise SplitError(f"{directory}: no {MANIFEST}; make one with `dataset split`")
+    try:
+        manifest = json.loads(path.read_text())
+    except (OSError, UnicodeDecodeError) as exc:
+        raise SplitError(f"{path}: cannot be read ({exc})") from None
+    except json.JSONDecodeError as exc:
+        raise SplitError(f"{path}: not valid JSON (line {exc.lineno}, column {exc.colno}: {exc.msg})") from None
+    _check_manifest(path, manifest)
+    parts = {name: _load_part(directory, name, count, manifest["runs"]) for name, count in manifest["parts"].items()}
+    return manifest, parts
+
+
+def check_unchanged(manifest: dict, directory: str | Path) -> None:
+    """SplitError naming the first run file that changed since the split recorded its identity."""
+    for run in manifest["runs"]:
+        change = changed_since(run["path"], run["identity"])
+        if change:
+            raise SplitError(
+                f"{run['path']}: changed since the split {directory} verified it: {change}; make the split again "
+                "with `dataset split` (it verifies the file anew)"
+            )
