@@ -24,8 +24,9 @@ import numpy as np
 from acquisition import schema as S
 from acquisition.run_file import RunFileError, RunHeader, RunWriter
 from protocols.plan import AXES, PHASES, Plan
+from rig.envelope import DepthGuard
 from rig.errors import DeviceError, ForceLimitExceeded, RigError, SafetyError
-from rig.motion import describe
+from rig.interruption import describe
 from rig.safety import check_speed, check_target
 from rig.types import MotionSession
 
@@ -59,10 +60,13 @@ class ProtocolRefused(SafetyError):
     """The protocol would leave the rig's soft limits or exceed a speed; nothing moved."""
 
 
-def preflight(config, plan: Plan, origin: dict[str, float]) -> None:
+def preflight(config, plan: Plan, origin: dict[str, float], *, depth=None, envelope=None, poll_s=None) -> None:
     """Check every waypoint and speed of the plan against the rig config; moves nothing.
 
-    Raises ProtocolRefused naming the step, the axis, the value and the limit.
+    ``depth`` (rig.envelope.DepthGuard): no step below its floor. ``envelope``
+    (rig.envelope.Envelope, with the check period ``poll_s``): every captured step at a speed
+    the guard can stop in time (a captured step is never slowed: its frames are planned at
+    its speed). Raises ProtocolRefused naming the step, the axis, the value and the limit.
     """
     for step in plan.steps:
         for pose in (step.start, step.end):
@@ -86,6 +90,43 @@ def preflight(config, plan: Plan, origin: dict[str, float]) -> None:
                     check_speed(config.axes[axis], speed)
                 except SafetyError as exc:
                     raise ProtocolRefused(f"protocol step {step.index} ({step.phase}): {exc}") from None
+    if depth is None and config.safety is not None and config.safety.gel_thickness_mm is not None:
+        depth = DepthGuard(
+            origin["z"], "the protocol's origin", config.safety.gel_thickness_mm, config.safety.max_depth_fraction
+        )
+    if depth is not None and "z" in config.axes:
+        lowest = min(plan.steps, key=lambda step: step.end[2])
+        z = origin["z"] + lowest.end[2]
+        if z < depth.floor_z - 1e-6:
+            raise ProtocolRefused(
+                f"protocol step {lowest.index} ({lowest.phase}, level {lowest.level}) goes to z = {z:.3f} mm, "
+                f"{depth.surface_z - z:.2f} mm below the gel surface: {depth.describe()}; lower "
+                "motion.max_depth_mm, or raise [safety] max_depth_fraction if your gel allows it"
+            )
+    if envelope is not None:
+        _preflight_speeds(plan, origin, depth, envelope, poll_s or config.safety.poll_s)
+
+
+def _preflight_speeds(plan: Plan, origin: dict[str, float], depth, envelope, poll_s: float) -> None:
+    """Every captured step inside the envelope: z pressing into the gel at the gel's cap,
+    sideways and twisting steps below the surface at the pressed caps."""
+    surface = depth.surface_z if depth is not None else None
+    for step in plan.captured_steps:
+        pressed = surface is None or origin["z"] + min(step.start[2], step.end[2]) < surface
+        for axis, speed in step.speeds.items():
+            if axis == "z":
+                if step.end[2] >= step.start[2]:
+                    continue  # lifting
+                cap = envelope.cap("z", "gel", poll_s)
+            elif not pressed:
+                continue
+            else:
+                cap = envelope.cap(axis, "pressed", poll_s)
+            if speed > cap.speed * (1 + 1e-9):
+                raise ProtocolRefused(
+                    f"protocol step {step.index} ({step.phase}, level {step.level}): {axis} at {speed:g} {cap.unit}/s "
+                    f"is faster than the speed envelope's {cap.speed:.3g} {cap.unit}/s {cap.why()}"
+                )
 
 
 def disk_bytes(plan: Plan, frame_shape: tuple[int, int, int]) -> int:
@@ -188,7 +229,8 @@ class Acquisition:
         now = self.clock.now()
         for axis in self.rig.axes:
             seen = self.rig.last_status.get(axis)
-            if seen is not None and seen[0] == now:  # the monitor read it at this very instant
+            # the monitor read it at this very instant, or saw it idle since its last move
+            if seen is not None and (seen[0] == now or (axis not in moving and not seen[1].busy)):
                 self._measured[axis] = seen[1].position
             elif axis in moving or axis not in self._measured:
                 self._measured[axis] = self.rig.axes[axis].position()
@@ -198,7 +240,16 @@ class Acquisition:
     def run(self, path: str | Path, *, resume: bool = False, header: dict | None = None) -> RunResult:
         path = Path(path)
         plan, proto = self.plan, self.protocol
-        preflight(self.rig.config, plan, self.origin)
+        hint = (self.origin["z"], "the protocol's origin (--origin)")
+        self.monitor_interval_s = self._fitted_interval(self.rig.envelope(), self.rig.depth_guard(hint))
+        preflight(
+            self.rig.config,
+            plan,
+            self.origin,
+            depth=self.rig.depth_guard(hint),
+            envelope=self.rig.envelope(),
+            poll_s=self.monitor_interval_s,
+        )
         writer: RunWriter | None = None
         lock = None if resume else RunWriter.claim(path)  # a second writer is refused before anything moves
         k0 = 0
@@ -226,7 +277,11 @@ class Acquisition:
         # One motion session for the whole run: any error, Ctrl-C, SIGTERM or SIGHUP stops
         # every axis and lifts z to the approach height; _record_stop puts why into `result`.
         motion = self.rig.motion(
-            "protocol", retract_to_z=self._safe_z(), on_stop=lambda report: self._record_stop(result, report)
+            "protocol",
+            retract_to_z=self._safe_z(),
+            on_stop=lambda report: self._record_stop(result, report),
+            on_note=lambda text: log.warning("%s", text),
+            surface_hint=hint,
         )
         try:
             with motion as self._session:
@@ -295,6 +350,25 @@ class Acquisition:
                     writer.close()
         return result
 
+    def _fitted_interval(self, envelope, depth) -> float:
+        """The check period: the one asked for, shortened where a captured step's speed needs
+        more frequent checks to stay inside the speed envelope (never below the rig's poll_s;
+        preflight refuses a step that even that cannot make safe)."""
+        asked = interval = self.monitor_interval_s
+        surface = depth.surface_z if depth is not None else None
+        for step in self.plan.captured_steps:
+            pressed = surface is None or self.origin["z"] + min(step.start[2], step.end[2]) < surface
+            for axis, speed in step.speeds.items():
+                if axis not in self.rig.axes or (axis == "z" and step.end[2] >= step.start[2]):
+                    continue
+                if axis != "z" and not pressed:
+                    continue
+                longest = envelope.longest_poll_s(axis, "gel" if axis == "z" else "pressed", speed)
+                interval = min(interval, max(self.rig.config.safety.poll_s, longest))
+        # A whole fraction of the period asked for: the checks stay on the capture grid, and the
+        # measured timing's jitter does not move them (a simulated run is the same run every time).
+        return asked / math.ceil(asked / interval - 1e-9) if interval < asked else asked
+
     def _record_stop(self, result: RunResult, report) -> None:
         """How the motion session ended, in the words the run file keeps. Errors that are
         not the rig's own (a driver's ValueError, an OSError) are recorded with their type
@@ -313,6 +387,8 @@ class Acquisition:
         for problem in report.cleanup_errors:
             reason += f"; {problem}"
             log.error("after %s: %s", status, problem)
+        if exc is not None and report.actions:
+            reason += "; " + "; ".join(report.actions)
         result.status, result.reason = status, reason
 
     def _main(self, writer: RunWriter, k0: int, result: RunResult) -> None:
@@ -327,7 +403,8 @@ class Acquisition:
         current, into = plan.locate(t_k0)
         i_step = steps.index(current)
         if k0 == 0:
-            m.move(self._abs(plan.steps[0].end), {"z": plan.steps[0].speeds.get("z", proto.approach_speed_mm_s)})
+            # the approach is vertical: z alone, so that it runs fast to the gel and slows for the last part
+            m.move({"z": self._abs(plan.steps[0].end)["z"]}, plan.steps[0].speeds.get("z", proto.approach_speed_mm_s))
         else:  # back to where the interrupted run was, at protocol speed for the last part
             here = current.pose_at(into)
             m.move({"z": self.origin["z"]}, proto.approach_speed_mm_s)
@@ -344,7 +421,9 @@ class Acquisition:
             step = steps[i]
             targets = {a: v for a, v in self._abs(step.end).items() if a in step.speeds}
             if targets:
-                guard = m.start_move(targets, {a: step.speeds[a] for a in targets})
+                guard = m.start_move(
+                    targets, {a: step.speeds[a] for a in targets}, poll_s=self.monitor_interval_s, clamp=False
+                )
                 moving |= set(targets)
 
         start_step(i_step)

@@ -145,13 +145,17 @@ def run_protocol(
 
             rig_config = load_config(resolve_config_path(config))
         preflight(rig_config, plan, origin_map)
-        console.print(f"dry run: {protocol.name} fits {rig_config.path}'s soft limits and speeds; nothing moved")
+        console.print(
+            f"dry run: {protocol.name} fits {rig_config.path}'s soft limits, axis speeds and depth guard "
+            "(from --origin); nothing moved. The speed envelope is checked when the run starts: it needs "
+            "the gauge's measured period (docs/safety.md)"
+        )
         console.print(
             f"duration {fmt_duration(plan.total_duration_s)}, {plan.frame_count} frames, "
             f"about {disk_bytes(plan, (256, 256, 3)) / 1e9:.2f} GB at 256x256"
         )
         return
-    from rig.motion import SignalsAsExceptions
+    from rig.interruption import SignalsAsExceptions
 
     # SIGINT, SIGTERM and SIGHUP become MotionInterrupted for the whole command: while the
     # stages move the run's motion session stops and lifts them and the file records which

@@ -84,7 +84,7 @@ def friendly_errors(fn):
     @functools.wraps(fn)
     def wrapper(*args, **kwargs):
         from common.errors import ToolError
-        from rig.motion import MotionInterrupted
+        from rig.interruption import MotionInterrupted
 
         try:
             return fn(*args, **kwargs)
@@ -112,6 +112,11 @@ def friendly_errors(fn):
 def _say(text: str) -> None:
     """Progress on stderr (stdout keeps only the result): a long move shows it started."""
     typer.echo(f"{text} (Ctrl-C stops)", err=True)
+
+
+def _note(text: str) -> None:
+    """What the speed envelope or the depth guard changed about a move, on stderr."""
+    typer.secho(f"note: {text}", fg=typer.colors.YELLOW, err=True)
 
 
 @app.command()
@@ -160,11 +165,20 @@ def jog(
         ),
     ] = 0.1,
     pendant: Annotated[bool, typer.Option(help="Interactive mode: jog with the HID pendant (SpaceMouse).")] = False,
+    allow_deep: Annotated[
+        bool,
+        typer.Option(
+            "--allow-deep",
+            help="Let z go below the depth guard's floor (a fraction of the gel thickness under the gel surface), "
+            "at the slow speed the window behind the gel allows (docs/safety.md).",
+        ),
+    ] = False,
     config: ConfigOpt = None,
     sim: SimOpt = False,
     profile: ProfileOpt = None,
 ):
-    """Jog one axis: by --step, to --to, or interactively (keys + and - or arrows; q quits)."""
+    """Jog one axis: by --step, to --to, or interactively (keys + and - or arrows; q quits).
+    Speeds above the speed envelope are clamped, with a line saying why (docs/safety.md)."""
     from cli.session import open_rig
 
     if step is not None and to is not None:
@@ -172,13 +186,13 @@ def jog(
     with open_rig(config, sim, profile=profile, axes=(axis.value,)) as rig:
         unit = rig.config.axes[axis.value].unit
         if step is not None or to is not None:
-            with rig.motion("jog", on_start=_say) as m:
+            with rig.motion("jog", on_start=_say, on_note=_note, allow_deep=allow_deep) as m:
                 final = m.jog(axis.value, step=step, to=to, speed=speed)
             typer.echo(f"{axis.value} = {final:.4f} {unit}")
             return
         from cli.interactive import jog_with_keys, jog_with_pendant
 
-        with rig.motion("jog") as m:
+        with rig.motion("jog", on_note=_note, allow_deep=allow_deep) as m:
             if pendant:
                 jog_with_pendant(m, axis.value, key_step, speed)
             else:
@@ -215,16 +229,31 @@ def zero(
     sim: SimOpt = False,
     profile: ProfileOpt = None,
 ):
-    """Tare the force gauge: average unloaded samples and print the bias removed (N, N·mm)."""
-    from cli.session import open_rig
+    """Tare the force gauge: average unloaded samples, print the bias removed (N, N·mm) and
+    remember it for this rig (refused while z is below the remembered gel surface)."""
+    from cli.session import has_z, open_rig
+    from rig.contact_state import CLEARANCE_MM
     from rig.types import WRENCH_COMPONENTS, WRENCH_UNITS
 
-    with open_rig(config, sim, profile=profile, axes=()) as rig:
+    with open_rig(config, sim, profile=profile, axes=("z",) if has_z(config, sim) else ()) as rig:
+        guard = rig.depth_guard()
+        if guard is not None and "z" in rig.axes:
+            z = rig.axes["z"].position()
+            if z < guard.surface_z + CLEARANCE_MM:
+                _fail(
+                    f"z = {z:.3f} mm is not clear of the gel surface at z = {guard.surface_z:.3f} mm ({guard.how}): "
+                    "a tare now would count the indenter's load as zero; lift z above "
+                    f"{guard.surface_z + CLEARANCE_MM:.3f} mm first"
+                )
         bias = rig.tare(samples)
         typer.echo(
             "bias removed: " + ", ".join(f"{c} {v:+.4f} {u}" for c, v, u in zip(WRENCH_COMPONENTS, bias, WRENCH_UNITS))
         )
-        typer.echo("note: the tare lives in this process; later commands tare again (acquisition does at start)")
+        where = rig.state.path or "this process only (the built-in simulated rig is new each command)"
+        typer.echo(
+            f"remembered as the unloaded reading in {where}: a later command that is interrupted while pressed "
+            "judges contact by it (docs/safety.md); acquisition tares again at its start"
+        )
 
 
 @app.command("find-contact")
@@ -267,7 +296,7 @@ def find_contact_cmd(
         found = find_contact(rig, threshold_N=threshold, speed_mm_s=speed, max_travel_mm=max_travel, on_start=_say)
     typer.echo(
         f"contact at z = {found.z_mm:.4f} mm (|Fz| = {abs(found.fz_N):.3f} N, resolution "
-        f"{found.resolution_mm * 1000:.1f} µm); z lifted clear"
+        f"{found.resolution_mm * 1000:.1f} µm); z lifted clear; remembered as the gel surface for the depth guard"
     )
     typer.echo(f"use: rig run-protocol NAME --origin X,Y,{found.z_mm:.4f},THETA")
 
@@ -321,18 +350,24 @@ def sim_serve(
     gauge: Annotated[GaugeKind, typer.Option(help="Which force gauge to simulate.")] = GaugeKind("ft300"),
     profile: ProfileOpt = None,
 ):
-    """Start the simulated rig, print its port URLs, write a config; runs until Ctrl-C."""
+    """Start the simulated rig, print its port URLs, write a config; runs until Ctrl-C.
+    Refused while another `rig sim serve` writes the same --out."""
     import faulthandler
+    import os
     import signal
     import threading
 
     faulthandler.register(signal.SIGUSR1)  # `kill -USR1 PID` prints every thread's stack (a stuck simulator)
 
     from cli.session import load_sim_profile
+    from rig.ownership import claim
     from rig.sim.rig_sim import SERVED_DEVICE_TIMEOUT_S, SimulatedRig
 
     sensor_profile = load_sim_profile(profile)
-    with SimulatedRig(transport=transport.value, gauge=gauge.value, profile=sensor_profile) as simulated:
+    with (
+        claim({os.path.realpath(out): ["rig sim serve --out"]}, subject="config"),
+        SimulatedRig(transport=transport.value, gauge=gauge.value, profile=sensor_profile) as simulated,
+    ):
         camera = simulated.serve_camera()
         out.write_text(
             "# Written by `rig sim serve`; valid while that process runs.\n"

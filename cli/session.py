@@ -45,7 +45,7 @@ def open_rig(
     runs the closing: a gauge left streaming would break every later command.
     """
     from rig.config import load_config
-    from rig.motion import SignalsAsExceptions
+    from rig.interruption import SignalsAsExceptions
     from rig.rig import Rig
 
     check_profile_option(profile, sim)
@@ -63,6 +63,15 @@ def open_rig(
             cfg = load_config(resolve_config_path(config))
             with Rig.open(cfg, axes=axes, gauge=gauge, camera=_camera(cfg, camera)) as rig:
                 yield rig
+
+
+def has_z(config: Path | None, sim: bool) -> bool:
+    """Whether the rig a command opens has a z axis (the simulated rig always does)."""
+    if sim:
+        return True
+    from rig.config import load_config
+
+    return "z" in load_config(resolve_config_path(config)).axes
 
 
 def _camera(cfg, camera: bool | None) -> bool:

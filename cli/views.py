@@ -49,6 +49,52 @@ def print_status(rig, console: Console | None = None) -> None:
             "wrench (untared raw minus session tare): "
             + "  ".join(f"{c} {v:+.3f} {u}" for c, v, u in zip(WRENCH_COMPONENTS, values, WRENCH_UNITS))
         )
+    if rig.gauge is not None and rig.guard is not None and rig.axes:
+        print_safety(rig, console)
+
+
+def print_safety(rig, console: Console) -> None:
+    """What the guard knows: the measured gauge period and stop latencies, the speed envelope
+    in contact, the remembered gel surface and depth floor, and the remembered tare."""
+    from rig.rig_state import age_text
+
+    envelope = rig.envelope()
+    timing = envelope.timing
+    poll_s = rig.config.safety.poll_s
+    console.print(
+        f"guard: gauge sample period {1000 * timing.gauge_period_s:.1f} ms (measured) + latency bound "
+        f"{1000 * timing.gauge_latency_s:.0f} ms, checked every {1000 * poll_s:.0f} ms; stop latency "
+        + ", ".join(
+            f"{name} {1000 * timing.stop_latency_s(name):.1f} ms (round trip {1000 * timing.exchange_s[name]:.1f} "
+            f"measured + device {1000 * timing.device_reaction_s[name]:.0f} ms)"
+            for name in rig.axes
+        )
+    )
+    caps = []
+    for name in rig.axes:
+        cap = envelope.cap(name, "gel" if name == "z" else "pressed", poll_s)
+        caps.append(f"{name} {cap.speed:.3g} {cap.unit}/s")
+    safety = rig.config.safety
+    console.print(
+        "speed envelope in contact: " + ", ".join(caps) + f" (stiffness {safety.stiffness_N_per_mm:g} N/mm, "
+        f"shear {safety.shear_stiffness_N_per_mm:g} N/mm, twist {safety.twist_stiffness_Nmm_per_deg:g} N·mm/deg; "
+        f"overshoot at most {safety.overshoot_margin:.0%} of a limit)"
+    )
+    guard = rig.depth_guard()
+    if guard is None:
+        console.print(
+            "gel surface: not known yet (rig find-contact, or the first contact a move sees); "
+            "until then every z descent runs at the in-contact speed"
+        )
+    else:
+        console.print(
+            f"gel surface: z = {guard.surface_z:.4f} mm ({guard.how}); depth floor z = {guard.floor_z:.4f} mm"
+        )
+    tare = rig.state.tare
+    if tare is None:
+        console.print("tare: none remembered (rig zero)")
+    else:
+        console.print(f"tare: unloaded Fz {tare.fz_N:+.4f} N raw, taken {age_text(tare.t_unix)} (rig zero)")
 
 
 def _lock(locked: bool | None, what: str, key: str) -> str:

@@ -1,5 +1,8 @@
 """The paper's indenters as height maps, and the image of each one's contact face.
 
+Besides the paper's objects: ``plate20mm``, a rigid plate covering the whole pad, the
+stiffest contact the simulated rig can press (for the force guard's worst case).
+
 ``Indenter.separation(u, v)`` is the height (mm, ≥ 0) of the face above its lowest
 point at local coordinates (u, v) mm, where the face is not there it is FAR_MM.
 ``object_image`` is what a camera looking at the contact face sees: the condition
@@ -75,14 +78,21 @@ def flat_circle(diameter_mm: float) -> Indenter:
     )
 
 
-def square(side_mm: float = 6.0) -> Indenter:
+def _flat_square(name: str, description: str, side_mm: float) -> Indenter:
     s = side_mm / 2
     return Indenter(
-        "square",
-        f"flat square punch, {side_mm:g} mm side",
-        s * math.sqrt(2),
-        lambda u, v: np.where((np.abs(u) <= s) & (np.abs(v) <= s), 0.0, FAR_MM),
+        name, description, s * math.sqrt(2), lambda u, v: np.where((np.abs(u) <= s) & (np.abs(v) <= s), 0.0, FAR_MM)
     )
+
+
+def square(side_mm: float = 6.0) -> Indenter:
+    return _flat_square("square", f"flat square punch, {side_mm:g} mm side", side_mm)
+
+
+def plate(side_mm: float = 20.0) -> Indenter:
+    """A rigid flat plate larger than the pad (14-16 mm): the stiffest contact there is,
+    the whole gel pressed at once (docs/simulator.md, "Stopping": its stiffness table)."""
+    return _flat_square(f"plate{side_mm:g}mm", f"rigid flat plate, {side_mm:g} mm square, covers the pad", side_mm)
 
 
 def ring(outer_mm: float = 8.0, inner_mm: float = 5.0) -> Indenter:
@@ -161,6 +171,7 @@ INDENTERS: dict[str, Callable[[], Indenter]] = {
     "heart": heart,
     "woven": woven,
     "irregular": irregular,
+    "plate20mm": plate,
 }
 
 

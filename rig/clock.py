@@ -71,6 +71,9 @@ class ManualClock:
         devices emit what became due before the advancing code reads them."""
         self._listeners.append(callback)
 
+    def remove_listener(self, callback) -> None:
+        self._listeners.remove(callback)
+
     def now(self) -> float:
         # One attribute read is atomic; the lock only keeps concurrent advances from losing one.
         return self._t

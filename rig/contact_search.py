@@ -55,7 +55,7 @@ def find_contact(
             f"threshold ({threshold_N} N), speed ({speed_mm_s} mm/s), travel ({max_travel_mm} mm) "
             f"and backoff ({backoff_mm} mm) must be finite and > 0"
         )
-    with rig.motion("contact search", on_start=on_start) as m:
+    with rig.motion("contact search", on_start=on_start, search=True) as m:
         z_start = rig.axes["z"].position()
         low = rig.config.axes["z"].travel[0]
         z_floor = max(low, z_start - max_travel_mm)
@@ -64,5 +64,6 @@ def find_contact(
         m.move({"z": min(z_touch + backoff_mm, z_start)}, speed_mm_s)
         slow = speed_mm_s / 10
         z_contact, fz = _descend_until_touch(m, max(low, z_touch - backoff_mm), slow, threshold_N)
+        rig.state.remember_surface(z_contact, "find-contact")
         m.move({"z": min(z_contact + backoff_mm, z_start)}, speed_mm_s)
     return ContactFound(z_contact, fz, slow * rig.config.safety.poll_s)

@@ -69,10 +69,50 @@ class SoftLimitError(SafetyError):
 class ForceLimitExceeded(SafetyError):
     """The gauge read a force or torque beyond the armed limit; motion was stopped."""
 
-    def __init__(self, component: str, value: float, limit: float, unit: str):
+    def __init__(self, component: str, value: float, limit: float, unit: str, message: str | None = None):
         self.component, self.value, self.limit = component, value, limit
-        super().__init__(f"{component} = {value:.3f} {unit} exceeds the limit ±{limit:.3f} {unit}; all axes stopped")
+        super().__init__(
+            message or f"{component} = {value:.3f} {unit} exceeds the limit ±{limit:.3f} {unit}; all axes stopped"
+        )
+
+
+class DepthLimitError(SafetyError):
+    """A z target or position below the depth guard's floor (docs/safety.md, "Depth guard")."""
+
+
+class SpeedRefused(SafetyError):
+    """A speed the envelope cannot make safe, where clamping it is not allowed (a protocol's
+    captured step: a slower step would no longer match its planned capture times)."""
 
 
 class NotBuiltYet(RigError):
     """A capability that a later issue builds; says so instead of half-working."""
+
+
+class DeviceBusy(RigError):
+    """Another process holds a device this process was about to open (its claim in the
+    runtime folder, or the port's own lock): nothing was opened (rig/ownership.py).
+
+    ``pid``, ``command`` and ``since`` name the holder where it is known; the message is one
+    line: ``device /dev/pts/7 (axes x, y, z) is held by pid 4242 (rig console --config
+    rig-sim.toml) since 13:05:02; stop that process first``.
+    """
+
+    def __init__(
+        self,
+        device: str,
+        roles: str = "",
+        *,
+        pid: int | None = None,
+        command: str | None = None,
+        since: str | None = None,
+        detail: str = "",
+        subject: str = "device",
+    ):
+        self.device, self.roles, self.detail = device, roles, detail
+        self.pid, self.command, self.since = pid, command, since
+        holder = "another process" if pid is None else f"pid {pid}"
+        holder += (f" ({command})" if command else "") + (f" since {since}" if since else "")
+        holder += f" {detail}" if detail else ""
+        used_by = f" ({roles})" if roles else ""
+        super().__init__(f"{subject} {device}{used_by} is held by {holder}; stop that process first")

@@ -13,36 +13,64 @@ A session guarantees (docs/safety.md):
   axis went idle is within the limits (a streamed sample can predate the end of
   the travel, and the last ``poll_s`` of a press is where the force grows fastest);
 - SIGINT, SIGTERM and SIGHUP raise ``MotionInterrupted`` naming the signal;
+- every move runs inside the speed envelope (rig/envelope.py): no z below the depth
+  guard's floor without ``allow_deep``, and each part of a move at a speed the guard can
+  stop in time for the contact it may press (clamped with a note, or refused); while it
+  runs, a first contact slows it, a measured stiffer contact slows it further, and the
+  guard stops on the load predicted at the end of a stop, not only on the last reading;
 - on any way out every axis is stopped. After an error or a signal z is also lifted
-  clear when the gauge says it touches something (force-guarded, at limits relaxed
-  to the present load), the gauge stream is stopped and the camera closed; a second
+  clear whenever it may be pressed (rig/contact_state.py: averaged readings against the
+  remembered unloaded reference, the remembered gel surface, the last load-free z;
+  force-guarded at limits relaxed to the present load, or withdrawn open-loop and slowly
+  when the gauge is gone), the gauge stream is stopped and the camera closed; a second
   signal during that sequence waits for it. ``on_stop`` receives the outcome.
 """
 
 from __future__ import annotations
 
 import logging
-import signal
-import threading
-from dataclasses import dataclass, field
-from types import FrameType
-from typing import Any, Callable, Literal
+import math
+from typing import Callable, Literal
 
 import numpy as np
 
-from rig.errors import DeviceFault, DeviceTimeout, ForceLimitExceeded, RigError, SafetyError
+from rig.contact_state import CLEARANCE_MM, CONTACT_N, ContactTracker
+from rig.envelope import MIN_SPEED
+from rig.errors import (
+    DepthLimitError,
+    DeviceFault,
+    DeviceTimeout,
+    ForceLimitExceeded,
+    RigError,
+    SafetyError,
+    SpeedRefused,
+)
+from rig.interruption import HANDLED_SIGNALS, MotionInterrupted, SignalsAsExceptions, StopReport, describe
+from rig.lift import LiftAfterFailure
+from rig.load_watch import check_load_ahead
+from rig.move_plan import TOLERANCE_MM, MovePlanner
 from rig.safety import ForceGuard
 from rig.types import WrenchGuard
 
 log = logging.getLogger("rig.motion")
 
 AXIS_MOTION_METHODS = ("move_to", "home")  # the Axis methods (rig/types.py) that start motion
-HANDLED_SIGNALS = ("SIGINT", "SIGTERM", "SIGHUP")  # Ctrl-C, kill/systemd, a closed terminal or SSH session
 HOME_ORDER = ("z", "x", "y", "theta")  # z first: the indenter lifts clear before anything slides
 MIN_POLLS_BEFORE_TIMEOUT = 50  # on a fast simulated clock one poll's exchanges can take seconds of clock time
-CONTACT_N = 0.05  # |ΔFz| that means touching: find-contact's default threshold, >10σ of gauge noise
-LIFT_MAX_MM = 5.0  # how far an error lift searches for release: beyond any gel the rig takes (3 mm)
-CLEARANCE_MM = 0.5  # lifted this far past the point where the load went away
+WITHDRAW_SPEED = 0.5  # mm/s: z withdrawn open-loop (no gauge) no faster than this
+REST_WAIT_S = 5.0  # how long a stop may brake before the stop sequence calls it a fault
+STIFFNESS_SPAN_MM = 0.005  # z travel behind one dFz/dz estimate (averaged readings: gauge noise / span ≪ k)
+STIFFNESS_POLLS = 6  # polls kept for it
+__all__ = [
+    "CLEARANCE_MM",
+    "CONTACT_N",
+    "HANDLED_SIGNALS",
+    "Motion",
+    "MotionInterrupted",
+    "SignalsAsExceptions",
+    "StopReport",
+    "describe",
+]
 
 _active: list["Motion"] = []  # open sessions, for tests that check every motion happens inside one
 
@@ -51,79 +79,18 @@ def active_sessions() -> tuple["Motion", ...]:
     return tuple(_active)
 
 
-class MotionInterrupted(KeyboardInterrupt):
-    """A signal stopped the motion; ``signal_name`` says which (SIGINT, SIGTERM, SIGHUP)."""
-
-    def __init__(self, signal_name: str):
-        self.signal_name = signal_name
-        super().__init__(signal_name)
-
-    @property
-    def exit_code(self) -> int:
-        """The shell convention for death by this signal: 128 + its number (SIGTERM 143, SIGHUP 129)."""
-        return 128 + int(getattr(signal, self.signal_name))
-
-
-def describe(exc: BaseException | None) -> tuple[str, str]:
-    """(status, reason) for how a session ended: complete, interrupted (SIGTERM), aborted: Type: message."""
-    if exc is None:
-        return "complete", ""
-    if isinstance(exc, MotionInterrupted):
-        return "interrupted", f"interrupted ({exc.signal_name})"
-    if isinstance(exc, KeyboardInterrupt):
-        return "interrupted", "interrupted (Ctrl-C)"
-    return "aborted", f"aborted: {type(exc).__name__}: {exc}"
-
-
-class SignalsAsExceptions:
-    """While entered (main thread only; elsewhere Python cannot install handlers), the
-    handled signals raise ``MotionInterrupted``; with ``holding`` set they are only noted
-    in ``held``. The previous handlers come back on exit."""
-
-    def __init__(self):
-        self._previous: dict[int, Callable[[int, FrameType | None], Any] | int | None] = {}
-        self.holding = False
-        self.held: str | None = None
-
-    def __enter__(self) -> "SignalsAsExceptions":
-        if threading.current_thread() is threading.main_thread():
-            for name in HANDLED_SIGNALS:
-                number = getattr(signal, name, None)
-                if number is not None:
-                    self._previous[number] = signal.signal(number, self._handle)
-        return self
-
-    def _handle(self, signum, _frame) -> None:
-        name = signal.Signals(signum).name
-        if self.holding:
-            self.held = self.held or name
-            return
-        raise MotionInterrupted(name)
-
-    def __exit__(self, *exc) -> None:
-        for number, previous in self._previous.items():
-            # None: a handler installed from C, which Python cannot reinstate; the default is the safe fallback.
-            signal.signal(number, previous if previous is not None else signal.SIG_DFL)
-        self._previous.clear()
-
-
-@dataclass
-class StopReport:
-    """How a session ended, for ``on_stop`` (the acquisition writes it into the run file)."""
-
-    what: str
-    status: str  # complete | aborted | interrupted
-    reason: str  # "" when complete
-    error: BaseException | None
-    cleanup_errors: list[str] = field(default_factory=list)  # a stop, lift or close that failed
-
-
-class Motion:
+class Motion(LiftAfterFailure):
     """One guarded motion session on ``rig``; get it from ``rig.motion(what, ...)``.
 
     ``on_start(text)`` is told when each move or homing has started (the CLI prints it);
+    ``on_note(text)`` when the envelope clamps or slows a move (default: ``on_start``);
     ``on_stop(report)`` when the session ends. ``retract_to_z`` (axis mm): after an
-    error lift z to there instead of searching for release.
+    error lift z to there instead of searching for release. ``allow_deep``: z may go
+    below the depth guard's floor, at the speed the window behind the gel allows.
+    ``surface_hint`` (z, how): where the gel surface is said to be while the rig has none
+    remembered (a protocol's origin); the first contact seen replaces it. ``search``: a z
+    descent's target is only how far to look (find-contact): when a first contact puts it
+    below the depth floor, z stops there instead of the session failing.
     """
 
     def __init__(
@@ -133,20 +100,39 @@ class Motion:
         *,
         on_start: Callable[[str], None] | None = None,
         on_stop: Callable[[StopReport], None] | None = None,
+        on_note: Callable[[str], None] | None = None,
         retract_to_z: float | None = None,
+        allow_deep: bool = False,
+        surface_hint: tuple[float, str] | None = None,
+        search: bool = False,
     ):
         self.rig = rig
         self.what = what
         self.on_start = on_start
         self.on_stop = on_stop
+        self.on_note = on_note if on_note is not None else on_start
         self.retract_to_z = retract_to_z
+        self.allow_deep = allow_deep
+        self.surface_hint = surface_hint
+        self.search = search
         self.report: StopReport | None = None
         self._state = "new"  # new | open | closing | closed
         self._signals = SignalsAsExceptions()
         self._guard: ForceGuard | None = None  # the guard of the latest move
         self._moving: set[str] = set()  # started and not yet seen idle
         self._idle_since: float | None = None  # clock time the last axis went idle, until a later wrench passed
-        self._entry_fz_N = 0.0
+        self._contact: ContactTracker | None = None
+        self._poll_s = rig.config.safety.poll_s if rig.config.safety else 0.02  # the running move's check period
+        self._commanded: dict[str, tuple[float, float]] = {}  # axis -> (target, speed) under way
+        self._pressing: list[tuple[float, float]] = []  # (z, raw Fz) while z presses, for dF/dz
+        self._notes_said: set[str] = set()
+        self._actions: list[str] = []
+        self._slowed_s = 0.0  # time added to the running wait's deadline by slowing down
+        self._move_started_s = -math.inf  # clock time the latest move started (its load rate starts there)
+        self._strict = False  # the running move may not be slowed (a protocol's captured step)
+        self._moved = False  # a motion command went out in this session
+        self._previous: tuple[float, np.ndarray] | None = None  # the last check's reading, for a polled gauge's rate
+        self._last_z_mm = math.inf  # z as last seen by a check
 
     # -- entering and leaving --------------------------------------------------------
     def __enter__(self) -> "Motion":
@@ -163,14 +149,26 @@ class Motion:
                 f"(config {rig.config.path} [safety])"
             )
         self._signals.__enter__()
-        try:
-            self._entry_fz_N = rig.gauge.read_fresh().fz_N  # the gauge answers before anything moves
-        except BaseException:
-            self._signals.__exit__()
-            raise
+        # A signal while the session opens (z may be pressed from an earlier command) waits
+        # for the opening to finish, then runs the stop sequence like any other.
+        self._signals.holding = True
         rig.motion_session = self
         _active.append(self)
         self._state = "open"
+        try:
+            entry = rig.gauge.read_fresh()  # the gauge answers before anything moves
+            rig.envelope()  # its timing measured (reads only) before the first move
+            z_now = rig.axes["z"].position() if "z" in rig.axes else None
+            self._contact = ContactTracker(rig, entry, z_now, self.surface_hint)
+        except BaseException as exc:
+            self.__exit__(type(exc), exc, exc.__traceback__)
+            raise
+        self._signals.holding = False
+        if self._signals.held is not None:
+            interrupted = MotionInterrupted(self._signals.held)
+            self._signals.held = None
+            self.__exit__(MotionInterrupted, interrupted, None)
+            raise interrupted
         return self
 
     def __exit__(self, exc_type, exc, tb) -> Literal[False]:
@@ -195,6 +193,8 @@ class Motion:
         cleanup: list[str] = []
         unsettled = bool(self._moving) or self._idle_since is not None
         self._attempt(cleanup, "stop", self._stop_everything)
+        if self._moved:  # a stop brakes: the lift and the final reading wait for the axes to rest
+            self._attempt(cleanup, "waiting for the axes to stop", self._wait_at_rest)
         late_error = None
         if exc is None and unsettled:
             try:  # started without being waited for: the final wrench still has to pass
@@ -203,15 +203,19 @@ class Motion:
                 late_error = error
         failure = exc if exc is not None else late_error
         if failure is not None:
-            if "z" in self.rig.axes:
-                self._attempt(cleanup, "retract", self._lift_clear)
+            # A move refused before anything moved ("nothing was moved") leaves z where it was.
+            refused = (
+                not self._moved and isinstance(failure, SafetyError) and not isinstance(failure, ForceLimitExceeded)
+            )
+            if "z" in self.rig.axes and not refused:
+                self._attempt(cleanup, "retract", lambda: self._lift_clear(failure))
             if getattr(self.rig.gauge, "streaming", False):
                 self._attempt(cleanup, "stopping the gauge stream", self.rig.gauge.stop_stream)
             if self.rig.camera is not None:
                 camera, self.rig.camera = self.rig.camera, None
                 self._attempt(cleanup, "closing the camera", camera.close)
         status, reason = describe(failure)
-        self.report = StopReport(self.what, status, reason, failure, cleanup)
+        self.report = StopReport(self.what, status, reason, failure, cleanup, list(self._actions))
         if self.on_stop is not None:
             try:
                 self.on_stop(self.report)
@@ -227,47 +231,52 @@ class Motion:
             cleanup.append(f"{what} failed: {exc}")
             log.error("%s after %s: %s", what, self.what, exc)
 
+    def _wait_at_rest(self) -> None:
+        """Poll every axis until none reports busy (a stop command returns while the stage brakes)."""
+        deadline = self.rig.clock.now() + REST_WAIT_S
+        polls = 0
+        while any(axis.status().busy for axis in self.rig.axes.values()):
+            polls += 1
+            if self.rig.clock.now() > deadline and polls > MIN_POLLS_BEFORE_TIMEOUT:
+                raise DeviceTimeout(", ".join(self.rig.axes), "stop", None, "an axis still moves after its stop")
+            self.rig.clock.sleep(self.rig.config.safety.poll_s)
+
     def _stop_everything(self) -> None:
         before = len(self.rig.stop_errors)
         self.rig.stop_all()
         self._moving.clear()
+        self._commanded.clear()
         if len(self.rig.stop_errors) > before:
             raise self.rig.stop_errors[-1]
 
-    def _in_contact(self, wrench) -> bool:
-        tared = np.any(getattr(self.rig.gauge, "bias", np.zeros(6)) != 0)
-        unloaded = 0.0 if tared else self._entry_fz_N
-        try:
-            self.rig.guard.check(wrench)
-        except ForceLimitExceeded:
-            return True
-        return abs(wrench.fz_N - unloaded) >= CONTACT_N
-
-    def _lift_clear(self) -> None:
-        """After an error: z up to ``retract_to_z``, or until the load goes away plus CLEARANCE_MM."""
+    def _withdraw_open_loop(self, target: float, here: float, why: str) -> None:
+        """No gauge: z up to ``target`` slowly, watching only the axis (lifting cannot press)."""
         z = self.rig.axes["z"]
         cfg = self.rig.config.axes["z"]
-        here = z.position()
-        if self.retract_to_z is not None:
-            if here < self.retract_to_z - 1e-6:
-                self.move({"z": self.retract_to_z}, cfg.jog_speed)
+        if target <= here + TOLERANCE_MM:
             return
-        if not self._in_contact(self.rig.gauge.read_fresh()):
-            return
-        top = min(cfg.travel[1], here + LIFT_MAX_MM)
-        guard = self._start({"z": top}, {"z": cfg.jog_speed})
-        deadline = self.rig.clock.now() + 5.0 + 2.0 * (top - here) / cfg.jog_speed
+        speed = min(cfg.jog_speed, cfg.max_speed, WITHDRAW_SPEED)
+        self._moving.add("z")
+        self._moved = True
+        z.move_to(target, speed)
+        deadline = self.rig.clock.now() + 5.0 + 2.0 * (target - here) / speed
         polls = 0
-        while self._in_contact(self.rig.gauge.read()):
-            if not self.monitor(("z",), guard, "lift clear") and self._idle_since is None:
-                raise SafetyError(f"z lifted to {top:.3f} mm and the gauge still reads a load; lift it by hand")
+        while True:
+            status = z.status()
+            faults = z.faults(status)
+            if faults:
+                raise DeviceFault(z.label, "withdraw", status.warnings, ", ".join(faults))
+            if not status.busy:
+                break
             polls += 1
             if self.rig.clock.now() > deadline and polls > MIN_POLLS_BEFORE_TIMEOUT:
-                raise DeviceTimeout(z.label, "lift clear", None, "z did not lift clear in time")
+                raise DeviceTimeout(z.label, "withdraw", None, "z did not withdraw in time")
             self.rig.clock.sleep(self.rig.config.safety.poll_s)
-        self.rig.stop_all()
-        released = z.position()
-        self.move({"z": min(top, released + CLEARANCE_MM)}, cfg.jog_speed)
+        self._moving.discard("z")
+        self._act(
+            f"the gauge is gone: z withdrawn open-loop from {here:.3f} to {z.position():.3f} mm at {speed:g} mm/s "
+            f"({why})"
+        )
 
     # -- moving ---------------------------------------------------------------------------
     def _require_open(self) -> None:
@@ -276,25 +285,64 @@ class Motion:
                 f"motion session {self.what!r} is not open: the rig moves only inside `with rig.motion(...) as m:`"
             )
 
-    def start_move(self, targets: dict[str, float], speed: float | dict[str, float] | None = None) -> ForceGuard:
+    def _note(self, text: str) -> None:
+        if text not in self._notes_said:
+            self._notes_said.add(text)
+            if self.on_note is not None and self._state == "open":
+                self.on_note(text)
+            else:
+                log.info("%s", text)
+
+    def start_move(
+        self,
+        targets: dict[str, float],
+        speed: float | dict[str, float] | None = None,
+        *,
+        poll_s: float | None = None,
+        clamp: bool = True,
+    ) -> ForceGuard:
         """Check, then start moving the axes to ``targets``; returns the guard to monitor with.
 
-        The caller monitors until the axes are idle (``move`` does; ``settle`` waits).
+        ``poll_s``: how often the caller will ``monitor`` (the envelope's check period);
+        ``clamp=False``: a speed above the envelope is refused (SpeedRefused) instead of
+        clamped. The caller monitors until the axes are idle (``move`` does; ``settle`` waits).
         """
         self._require_open()
-        return self._start(targets, self.rig.check_targets(targets, speed))
+        poll = self._poll_for(poll_s)
+        speeds = self.rig.check_targets(targets, speed)
+        segments = self._plan(targets, speeds, poll, clamp, split=False)
+        guard = self._start(*segments[0], poll)
+        self._strict = not clamp
+        return guard
 
-    def _start(self, targets: dict[str, float], speeds: dict[str, float]) -> ForceGuard:
+    def _poll_for(self, poll_s: float | None) -> float:
+        base = self.rig.config.safety.poll_s
+        if poll_s is None:
+            return base
+        if not math.isfinite(poll_s) or poll_s <= 0:
+            raise SafetyError(f"a check period must be finite and > 0 s, got {poll_s!r}")
+        return max(base, poll_s)
+
+    def _start(self, targets: dict[str, float], speeds: dict[str, float], poll_s: float | None = None) -> ForceGuard:
         guard = self._guard_for(targets)
         self._guard = guard
+        self._poll_s = self._poll_for(poll_s)
         try:
             for name, target in targets.items():
                 self._moving.add(name)
+                self._commanded[name] = (target, speeds[name])
+                self._moved = True
                 self.rig.axes[name].move_to(target, speeds[name])
         except BaseException:
             self.rig.stop_all()
             raise
         self._idle_since = None
+        self._pressing.clear()
+        self._slowed_s = 0.0
+        self._strict = False
+        self._move_started_s = self.rig.clock.now()
+        if "z" in targets:
+            self._last_z_mm = self.rig.axes["z"].position()
         if self.on_start is not None and self._state == "open":
             cfg = self.rig.config.axes
             self.on_start(
@@ -304,36 +352,115 @@ class Motion:
             )
         return guard
 
+    # -- the envelope: depth and speed ------------------------------------------------------
+    def _pressed_now(self) -> bool:
+        contact = self._contact
+        if contact is None:
+            return False
+        if contact.loaded:
+            return True
+        return "z" in self.rig.axes and contact.below_surface(self.rig.axes["z"].position())
+
+    def _plan(
+        self, targets: dict[str, float], speeds: dict[str, float], poll_s: float, clamp: bool, split: bool = True
+    ) -> list[tuple[dict[str, float], dict[str, float]]]:
+        """The move as segments inside the speed envelope (rig/move_plan.py)."""
+        planner = MovePlanner(self.rig, self.surface_hint, self.allow_deep, self.search, self._note)
+        return planner.plan(targets, speeds, poll_s, clamp=clamp, split=split, pressed=self._pressed_now())
+
+    def _govern(self, z_mm: float, wrench) -> None:
+        """Mid-move: a z descent slows when it meets a contact its speed was not planned for
+        (a first contact, a stiffer contact than assumed), and stops at the depth floor."""
+        commanded = self._commanded.get("z")
+        if commanded is None or "z" not in self._moving:
+            return
+        target, speed = commanded
+        if target >= z_mm - TOLERANCE_MM:
+            return  # lifting, or there
+        envelope = self.rig.envelope()
+        contact = self._contact
+        assert contact is not None
+        guard = self.rig.depth_guard(self.surface_hint)
+        if guard is not None and not self.allow_deep:
+            if self.search and z_mm >= guard.floor_z and target < guard.floor_z - TOLERANCE_MM:
+                # the search looks no deeper than the floor (its caller stops at its own threshold)
+                target = guard.floor_z
+                self.rig.axes["z"].move_to(target, speed)
+                self._commanded["z"] = (target, speed)
+                self._note(f"z: searching no deeper than the depth floor, z = {target:.3f} mm")
+            if z_mm < guard.floor_z - TOLERANCE_MM or target < guard.floor_z - TOLERANCE_MM:
+                self.rig.stop_all()
+                raise DepthLimitError(
+                    f"z stopped at {z_mm:.3f} mm on its way to {target:.3f} mm: {guard.describe()} "
+                    "(--allow-deep goes deeper, slowly)"
+                )
+        if contact.loaded:
+            self._pressing.append((z_mm, contact.averaged_raw_fz(wrench)))
+            del self._pressing[:-STIFFNESS_POLLS]
+            (z0, f0), (z1, f1) = self._pressing[0], self._pressing[-1]
+            if z0 - z1 >= STIFFNESS_SPAN_MM and f1 > f0 and envelope.note_stiffness((f1 - f0) / (z0 - z1)):
+                k, _ = envelope.normal_stiffness()
+                self._note(f"z: the contact measures stiffer than assumed; assuming {k:.3g} N/mm")
+        deep = guard is not None and z_mm < guard.floor_z + TOLERANCE_MM
+        zone = "deep" if deep else "gel"
+        if not contact.loaded and not deep and not contact.reference.assumed and guard is not None:
+            return  # clear of the gel, on a planned approach
+        cap = envelope.cap("z", zone, self._poll_s)
+        if speed > cap.speed * (1 + 1e-9):
+            if self._strict:
+                self.rig.stop_all()
+                raise SpeedRefused(
+                    f"z stopped at {z_mm:.3f} mm: its {speed:g} mm/s is no longer inside the speed envelope "
+                    f"({cap.speed:.3g} mm/s) {cap.why()}; this step may not be slowed: raise [safety] "
+                    "stiffness_N_per_mm to this contact's and run it slower"
+                )
+            if cap.speed < MIN_SPEED:
+                self.rig.stop_all()
+                raise SpeedRefused(
+                    f"z stopped at {z_mm:.3f} mm: no speed is safe {cap.why()} (the envelope allows "
+                    f"{cap.speed:.2g} mm/s)"
+                )
+            slower = cap.speed
+            self._slowed_s += 2.0 * (z_mm - target) / slower  # the wait's deadline moves with the slower speed
+            self.rig.axes["z"].move_to(target, slower)
+            self._commanded["z"] = (target, slower)
+            self._note(f"z: slowed from {speed:g} to {slower:.3g} mm/s {cap.why()}")
+
     def _guard_for(self, targets: dict[str, float]) -> ForceGuard:
         """The guard for this move. Over a limit already, only lifting z (+z is away from
         the gel) may start, guarded at the load it starts from so that it cannot grow."""
         wrench = self.rig.gauge.read_fresh()
-        try:
-            self.rig.guard.check(wrench)
-            return self.rig.guard
-        except ForceLimitExceeded:
-            lifting = set(targets) == {"z"} and targets["z"] > self.rig.axes["z"].position()
-            if not lifting:
-                raise
-            return self.rig.guard.relaxed_to(wrench)
+        lifting = set(targets) == {"z"} and targets["z"] > self.rig.axes["z"].position()
+        if lifting and np.all(np.isfinite(wrench.as_array())):
+            # Going up can only unload the gel: guarded at the overshoot a stop may leave (the
+            # envelope's margin) or the present load, whichever is higher, so that it cannot grow.
+            margin = self.rig.config.safety.overshoot_margin
+            relaxed = ForceGuard.from_limits(self.rig.guard.limits * (1.0 + margin))
+            return relaxed.relaxed_to(wrench)
+        self.rig.guard.check(wrench)
+        return self.rig.guard
 
     def monitor(self, names, guard: WrenchGuard | None = None, what: str | None = None) -> set[str]:
-        """One safety check: the wrench against the limits, the axes for faults.
+        """One safety check: the wrench against the limits (read and predicted), the axes for
+        faults, and a z descent against the envelope (slowed or stopped at the depth floor).
 
         Returns the axes still moving; ``rig.last_status`` keeps what each reported.
         Once they are all idle, ``settled`` stays False until a wrench measured after
-        that moment has passed. Raises ForceLimitExceeded or DeviceFault (the session
-        stops the rig on the way out).
+        that moment has passed. Raises ForceLimitExceeded, DepthLimitError or DeviceFault
+        (the session stops the rig on the way out).
         """
         self._require_open()
         rig = self.rig
         guard = guard or rig.guard
         wrench = rig.gauge.read()
         guard.check(wrench)
+        if self._moving:
+            self._check_predicted(wrench, guard)
         latency_s = getattr(rig.gauge, "fresh_after_s", 0.0)
         if self._idle_since is not None and wrench.t_s - latency_s >= self._idle_since:
             self._idle_since = None
         moving = set()
+        z_seen = None
         for name in names:
             axis = rig.axes[name]
             status = axis.status()
@@ -341,12 +468,43 @@ class Motion:
             faults = axis.faults(status)
             if faults:
                 raise DeviceFault(axis.label, what or self.what, status.warnings, ", ".join(faults))
+            if name == "z":
+                z_seen = self._last_z_mm = status.position
             if status.busy:
                 moving.add(name)
             elif name in self._moving:
                 self._moving.discard(name)
+                self._commanded.pop(name, None)
                 self._idle_since = rig.clock.now()
+        if self._contact is not None and self._state == "open":
+            commanded = self._commanded.get("z")
+            descending = z_seen is not None and commanded is not None and commanded[0] < z_seen - TOLERANCE_MM
+            if self._contact.observe(wrench, z_seen, descending, self.what):
+                self._note(f"z: first contact at {z_seen:.4f} mm: remembered as the gel surface")
+            if z_seen is not None and "z" in moving:
+                self._govern(z_seen, wrench)
         return moving
+
+    def _check_predicted(self, wrench, guard: WrenchGuard) -> None:
+        """The load predicted at the end of a stop, and a gauge gone quiet (rig/load_watch.py)."""
+        previous, self._previous = self._previous, (wrench.t_s, wrench.as_array())
+        z = self._commanded.get("z")
+        if set(self._moving) == {"z"} and z is not None and z[0] > self._last_z_mm:
+            return  # z going up, alone: the load can only fall
+        speeds = {name: self._commanded[name][1] if name in self._commanded else 0.0 for name in self._moving}
+        check_load_ahead(self.rig, wrench, guard, speeds, self._poll_s, self._move_started_s, previous)
+
+    def time_left_s(self) -> float:
+        """How long the started moves take from here at their commanded speeds (s)."""
+        left = 0.0
+        for name, (target, speed) in self._commanded.items():
+            left = max(left, abs(target - self.rig.axes[name].position()) / speed)
+        return left
+
+    @property
+    def slowed_s(self) -> float:
+        """Time the running moves gained by being slowed since they started (a deadline moves by it)."""
+        return self._slowed_s
 
     @property
     def settled(self) -> bool:
@@ -364,7 +522,7 @@ class Motion:
         try:
             while self.monitor(names, guard, what) or self._idle_since is not None:
                 polls += 1
-                if self.rig.clock.now() > deadline and polls > MIN_POLLS_BEFORE_TIMEOUT:
+                if self.rig.clock.now() > deadline + self._slowed_s and polls > MIN_POLLS_BEFORE_TIMEOUT:
                     raise DeviceTimeout(", ".join(names), what, None, "motion did not finish in time")
                 self.rig.clock.sleep(self.rig.config.safety.poll_s)
         except BaseException:
@@ -381,17 +539,21 @@ class Motion:
         """Move the given axes together to absolute ``targets``; returns the final positions.
 
         Every target and speed is checked before anything moves (SoftLimitError,
-        SafetyError). Raises ForceLimitExceeded, DeviceFault, DeviceTimeout.
+        SafetyError, DepthLimitError); a speed above the envelope is clamped with a note.
+        Raises ForceLimitExceeded, DeviceFault, DeviceTimeout.
         """
         self._require_open()
         rig = self.rig
+        poll = rig.config.safety.poll_s
         speeds = rig.check_targets(targets, speed)
-        started = rig.clock.now()
-        starts = {name: rig.axes[name].position() for name in targets}
-        guard = self._start(targets, speeds)
-        if timeout_s is None:
-            timeout_s = 5.0 + 2.0 * max(abs(targets[n] - starts[n]) / speeds[n] for n in targets)
-        self._wait(tuple(targets), started + timeout_s, f"move to {targets}", guard)
+        for seg_targets, seg_speeds in self._plan(targets, speeds, poll, clamp=True):
+            started = rig.clock.now()
+            starts = {name: rig.axes[name].position() for name in seg_targets}
+            guard = self._start(seg_targets, seg_speeds, poll)
+            limit_s = timeout_s
+            if limit_s is None:
+                limit_s = 5.0 + 2.0 * max(abs(seg_targets[n] - starts[n]) / seg_speeds[n] for n in seg_targets)
+            self._wait(tuple(seg_targets), started + limit_s, f"move to {targets}", guard)
         final = {name: rig.axes[name].position() for name in targets}
         for name, target in targets.items():
             cfg = rig.config.axes[name]
@@ -424,15 +586,23 @@ class Motion:
         return self.move({axis: base + step}, speed)[axis]
 
     def home_axes(self, names: tuple[str, ...] | None = None, *, timeout_s: float = 120.0) -> None:
-        """Home the axes one at a time, z first, under the force guard."""
+        """Home the axes one at a time, z first, under the force guard. A lateral or twist
+        axis does not home while the indenter is pressed (its homing speed is the device's,
+        not the envelope's): z must lift first."""
         self._require_open()
         rig = self.rig
         names = tuple(rig.axes) if names is None else names
         rig.require_armed(names)
         for name in sorted(names, key=HOME_ORDER.index):
+            if name != "z" and self._pressed_now():
+                raise SafetyError(
+                    f"axis {name}: not homing while the indenter is pressed (it would slide across the gel at the "
+                    "device's homing speed); lift z first (rig home --axis z)"
+                )
             # Homing z goes up, away from the gel: like a lift it may start from an overload.
             self._guard = self._guard_for({name: float("inf")} if name == "z" else {name: 0.0})
             self._moving.add(name)
+            self._moved = True
             rig.axes[name].home()
             self._idle_since = None
             if self.on_start is not None:
@@ -443,7 +613,10 @@ class Motion:
                 raise DeviceFault(
                     rig.axes[name].label, "home", status, "homing finished but the axis is not referenced"
                 )
+            if name == "z" and self._contact is not None:
+                self._contact.loaded = self._contact.is_loaded(rig.gauge.read())
 
     def stop(self) -> None:
         """Stop every axis now (a contact search stops at the touch)."""
         self.rig.stop_all()
+        self._commanded.clear()

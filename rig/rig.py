@@ -12,8 +12,12 @@ from typing import TYPE_CHECKING
 
 from rig.clock import Clock, SystemClock
 from rig.config import RigConfig
+from rig.contact_state import CLEARANCE_MM
+from rig.envelope import DepthGuard, Envelope, measure_timing
 from rig.errors import DeviceError, RigError, SafetyError
 from rig.factory import PortPool, open_axis, open_camera, open_gauge
+from rig.ownership import Claim, claim_rig
+from rig.rig_state import RigState, age_text
 from rig.safety import ForceGuard, check_speed, check_target
 from rig.types import Axis, AxisStatus, Camera, ForceGauge, RigStatus
 
@@ -33,6 +37,7 @@ class Rig:
         gauge: ForceGauge | None = None,
         camera: Camera | None = None,
         pool: PortPool | None = None,
+        state: RigState | None = None,
     ):
         self.config = config
         self.clock = clock
@@ -45,6 +50,10 @@ class Rig:
         self.last_targets: dict[str, float] = {}  # last target each axis reached
         self.last_status: dict[str, tuple[float, AxisStatus]] = {}  # (clock time, status) from monitor
         self.motion_session: Motion | None = None  # the open motion session, at most one
+        self.claim: Claim | None = None  # the devices this process holds (rig/ownership.py), released by close()
+        # the remembered tare and gel surface (rig/rig_state.py); Rig.open reads it before opening anything
+        self.state = state if state is not None else RigState.for_config(config)
+        self._envelope: Envelope | None = None  # measured on the first move (rig/envelope.py)
 
     @classmethod
     def open(
@@ -57,7 +66,9 @@ class Rig:
         camera: bool = False,
         sim=None,
     ) -> "Rig":
-        """Open only the devices asked for (``axes=None``: all configured axes)."""
+        """Open only the devices asked for (``axes=None``: all configured axes), claimed first
+        (rig/ownership.py): DeviceBusy naming the holder, and nothing opened, when another
+        process holds one of them."""
         clock = clock or SystemClock()
         names = tuple(config.axes) if axes is None else axes
         for name in names:
@@ -65,24 +76,30 @@ class Rig:
                 raise RigError(
                     f"{config.path}: axis {name!r} is not configured (configured: {', '.join(config.axes) or 'none'})"
                 )
+        state = RigState.for_config(config)  # a damaged state file: one line, before any device opens
+        claim = claim_rig(config, names, gauge=gauge, camera=camera)
         pool = PortPool()
         opened_gauge = opened_camera = None
         opened_axes: dict[str, Axis] = {}
         try:
-            for name in names:
-                opened_axes[name] = open_axis(config.axes[name], pool)
-            if gauge and config.gauge is not None:
-                opened_gauge = open_gauge(config.gauge, clock, pool)
-            if camera:
-                if config.camera is None:
-                    raise RigError(f"{config.path}: no [camera] section")
-                opened_camera = open_camera(config.camera, clock, sim)
+            with claim.explaining():  # a port locked by a process without a claim: named too
+                for name in names:
+                    opened_axes[name] = open_axis(config.axes[name], pool)
+                if gauge and config.gauge is not None:
+                    opened_gauge = open_gauge(config.gauge, clock, pool)
+                if camera:
+                    if config.camera is None:
+                        raise RigError(f"{config.path}: no [camera] section")
+                    opened_camera = open_camera(config.camera, clock, sim)
         except BaseException:
             if opened_gauge is not None:
                 opened_gauge.close()
             pool.close()
+            claim.release()
             raise
-        return cls(config, clock, axes=opened_axes, gauge=opened_gauge, camera=opened_camera, pool=pool)
+        rig = cls(config, clock, axes=opened_axes, gauge=opened_gauge, camera=opened_camera, pool=pool, state=state)
+        rig.claim = claim
+        return rig
 
     # -- reading ----------------------------------------------------------------
     def positions(self) -> dict[str, float]:
@@ -95,9 +112,45 @@ class Rig:
         )
 
     def tare(self, n_samples: int = 20):
+        """Tare the gauge (the caller knows nothing touches it) and remember the unloaded
+        reading for later commands: a session that starts pressed judges contact by it."""
         if self.gauge is None:
             raise RigError("no force gauge open")
-        return self.gauge.tare(n_samples)
+        bias = self.gauge.tare(n_samples)
+        guard = self.depth_guard()
+        if guard is not None and "z" in self.axes and self.axes["z"].position() < guard.surface_z + CLEARANCE_MM:
+            log.warning(
+                "tare taken at z = %.3f mm, not clear of the gel surface at %.3f mm: used now, not remembered",
+                self.axes["z"].position(),
+                guard.surface_z,
+            )
+            return bias
+        self.state.remember_tare(bias)
+        return bias
+
+    def envelope(self) -> Envelope:
+        """The speed envelope: the safety config with the gauge period and each axis's
+        round trip, measured once (reads only) when first asked for."""
+        if self._envelope is None:
+            self.require_armed(())
+            assert self.guard is not None  # require_armed refuses a rig without one
+            self._envelope = Envelope(self.config.safety, self.config.axes, measure_timing(self), self.guard.limits)
+        return self._envelope
+
+    def depth_guard(self, surface_hint: tuple[float, str] | None = None) -> DepthGuard | None:
+        """The depth guard from the remembered gel surface (else ``surface_hint``: (z, how)),
+        None while no surface is known or the config states no gel."""
+        safety = self.config.safety
+        if safety is None or safety.gel_thickness_mm is None:
+            return None
+        surface = self.state.surface
+        if surface is not None:
+            z, how = surface.z_mm, f"{surface.how}, {age_text(surface.t_unix)}"
+        elif surface_hint is not None:
+            z, how = surface_hint
+        else:
+            return None
+        return DepthGuard(z, how, safety.gel_thickness_mm, safety.max_depth_fraction)
 
     # -- moving: only through a motion session (rig/motion.py) ---------------------------
     def motion(self, what: str, **options) -> "Motion":
@@ -142,8 +195,9 @@ class Rig:
 
     def stop_all(self) -> None:
         """Stop every axis; a failure to stop one is logged and kept, never hidden, and the
-        others are still stopped (whatever the failure's type)."""
-        for axis in self.axes.values():
+        others are still stopped (whatever the failure's type). z first: on a shared line its stop
+        is not queued behind the others (its stop latency is the one the speed envelope counts)."""
+        for _, axis in sorted(self.axes.items(), key=lambda item: item[0] != "z"):
             try:
                 axis.stop()
             except Exception as exc:
@@ -152,15 +206,19 @@ class Rig:
 
     # -- lifetime ---------------------------------------------------------------
     def close(self) -> None:
-        if self.camera is not None:
-            self.camera.close()
-        if self.gauge is not None:
-            try:
-                self.gauge.close()
-            except DeviceError as exc:
-                log.error("closing the gauge: %s", exc)
-        if self._pool is not None:
-            self._pool.close()
+        try:
+            if self.camera is not None:
+                self.camera.close()
+            if self.gauge is not None:
+                try:
+                    self.gauge.close()
+                except DeviceError as exc:
+                    log.error("closing the gauge: %s", exc)
+            if self._pool is not None:
+                self._pool.close()
+        finally:
+            if self.claim is not None:  # after the devices: the next owner finds them closed
+                self.claim.release()
 
     def __enter__(self) -> "Rig":
         return self

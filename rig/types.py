@@ -261,8 +261,16 @@ class MotionSession(Protocol):
         """Move the axes together to absolute ``targets`` and wait; returns the final positions."""
         ...
 
-    def start_move(self, targets: dict[str, float], speed: float | dict[str, float] | None = None) -> WrenchGuard:
-        """Start a move without waiting; returns the guard to ``monitor`` it with."""
+    def start_move(
+        self,
+        targets: dict[str, float],
+        speed: float | dict[str, float] | None = None,
+        *,
+        poll_s: float | None = None,
+        clamp: bool = True,
+    ) -> WrenchGuard:
+        """Start a move without waiting; returns the guard to ``monitor`` it with. ``poll_s``:
+        how often the caller monitors; ``clamp=False``: a speed over the envelope is refused."""
         ...
 
     def monitor(self, names: Any, guard: WrenchGuard | None = None, what: str | None = None) -> set[str]:

@@ -106,9 +106,13 @@ def test_file_is_readable_while_it_grows(quick, tmp_path):
     assert seen == [(3, 3, b"running"), (3, "running"), (9, 9, b"running"), (9, "running")]
 
 
-def test_force_limit_trip_retracts_and_records(quick, tmp_path):
+def test_force_limit_trip_retracts_and_records(tmp_path):
+    # At a 1 N limit the speed envelope allows 0.03 mm/s at most (docs/safety.md): press at 0.02.
+    slow = parse_protocol(QUICK.replace("speed_mm_s = 0.1", "speed_mm_s = 0.02"), "slow.toml")
+    quick = slow
     out = tmp_path / "run.h5"
-    result, final = run(quick, out, safety=SafetyConfig(max_force_N=(10.0, 10.0, 1.0), max_torque_Nmm=(300, 300, 300)))
+    safety = SafetyConfig(max_force_N=(10.0, 10.0, 1.0), max_torque_Nmm=(300, 300, 300), gel_thickness_mm=3.0)
+    result, final = run(slow, out, safety=safety)
     assert result.status == "aborted" and "force limit" in result.reason and "Fz" in result.reason
     assert final["z"] == pytest.approx(quick.approach_mm, abs=1e-3)  # lifted clear
     with open_for_reading(out) as f:

@@ -23,6 +23,7 @@ port = "/dev/ttyUSB1"
 [safety]
 max_force_N = [10.0, 10.0, 40.0]
 max_torque_Nmm = [300.0, 300.0, 200.0]
+gel_thickness_mm = 3.0
 """
 
 

@@ -371,6 +371,101 @@ def test_off_loopback_every_request_needs_the_token(tmp_path):
         assert unknown.value.code == 404
 
 
+def _refusals(ws, messages) -> list[str]:
+    """Send each message; the text of the ``refused`` answer to each (other messages skipped)."""
+    import json
+
+    answers = []
+    for message in messages:
+        ws.send(message)
+        while True:
+            reply = ws.recv(timeout=WAIT_S)
+            if isinstance(reply, str) and json.loads(reply).get("type") == "refused":
+                answers.append(json.loads(reply)["text"])
+                break
+    return answers
+
+
+def test_malformed_messages_are_refused_never_a_traceback(tmp_path, capfd):
+    """Issue 25: valid JSON that is not an object (and worse) once ended in `AttributeError: 'list'
+    object has no attribute 'get'` on the server's stderr. Each is answered, the link lives on."""
+    import json
+
+    from cli.console.server import MALFORMED
+
+    ws_client = pytest.importorskip("websockets.sync.client")
+    options = console_options(config=None, sim=False, live=False, runs=[tmp_path])
+    with serving_in_thread(options) as url, ws_client.connect(url.replace("http://", "ws://") + "ws") as ws:
+        malformed = ["[1, 2]", "3", '"stop"', "null", "not json", "{", "[" * 100_000, b"\x00binary"]
+        assert _refusals(ws, malformed) == [MALFORMED] * len(malformed)
+        ws.send(json.dumps({"type": "take_control"}))  # still served
+        while not (isinstance(reply := ws.recv(timeout=WAIT_S), str) and json.loads(reply).get("you") is True):
+            pass
+    err = capfd.readouterr().err
+    assert "Traceback" not in err and "AttributeError" not in err, err
+
+
+def test_fields_of_the_wrong_type_are_refused(console, capfd):
+    """A command with a field of the wrong type reaches neither the rig nor a traceback."""
+    import json
+
+    ws_client = pytest.importorskip("websockets.sync.client")
+    url, options = console
+    errors_before = options.worker.errors_seen
+    with ws_client.connect(url.replace("http://", "ws://") + "ws") as ws:
+        answers = _refusals(
+            ws,
+            [
+                json.dumps({"type": "jog", "axis": ["x"], "step": 1}),
+                json.dumps({"type": "home", "axis": 5}),
+                json.dumps({"type": {"a": 1}}),
+                json.dumps({"type": "run_protocol", "name": ["x"], "origin": "here"}),
+            ],
+        )
+    assert answers[:3] == [
+        "jog refused: axis ['x'] is not an axis name",
+        "home refused: axis 5 is not an axis name",
+        "unknown command {'a': 1}",
+    ]
+    assert answers[3].startswith("run_protocol refused")  # not this page's control, whatever else
+    assert options.worker.errors_seen == errors_before
+    err = capfd.readouterr().err
+    assert "Traceback" not in err, err
+
+
+def test_the_page_says_this_console_holds_the_rig(browser):
+    wait_for(browser, lambda d: "rig held by this console" in d.find_element("id", "rig-status").text, "no holder")
+    assert browser.find_element("id", "rig-status").text == f"rig held by this console (pid {os.getpid()})"
+
+
+def test_the_page_names_the_process_holding_the_rig(tmp_path):
+    """Another process holds the rig (`rig sim serve` in one process, a holder in another):
+    the console serves on, and its page names the holder instead of looking live."""
+    _need_browser()
+    from test_device_ownership import holding, served
+
+    with served(tmp_path) as (cfg, _server), holding(tmp_path, cfg) as holder:
+        options = console_options(config=cfg, sim=False, live=True, runs=[tmp_path])
+        with serving_in_thread(options) as url:
+            worker = options.worker
+            assert worker is not None and worker.ready.wait(WAIT_S)
+            assert worker.rig_status["state"] == "busy" and worker.rig_status["holder_pid"] == holder.pid
+            driver = new_browser()
+            try:
+                driver.get(url)
+                pill = lambda d: d.find_element("id", "rig-status").text
+                wait_for(driver, lambda d: pill(d).endswith(f" held by pid {holder.pid}"), "the holder is not named")
+                assert pill(driver).startswith("rig busy: /dev/pts/")
+                assert driver.find_element("id", "link-status").text == "no rig"
+                assert not driver.find_element("id", "live").is_displayed()  # no frame, no jog buttons
+                said = driver.find_element("id", "rig-error").text  # the whole line: the holder's command too
+                assert f" is held by pid {holder.pid} (python " in said and "holder.py" in said, said
+                assert said.endswith("stop that process first"), said
+                screenshot(driver, "console_rig_busy.png")
+            finally:
+                driver.quit()
+
+
 RIG = str(Path(__import__("sys").executable).parent / "rig")
 
 

@@ -560,7 +560,15 @@ RIG = {
         "discard_frames": 5,
         "mm_per_px": 0.0634,
     },
-    "safety": {"max_force_N": [5.0, 5.0, 25.0], "max_torque_Nmm": [200.0, 200.0, 100.0], "poll_s": 0.02},
+    "safety": {
+        "max_force_N": [5.0, 5.0, 25.0],
+        "max_torque_Nmm": [200.0, 200.0, 100.0],
+        "poll_s": 0.02,
+        "gel_thickness_mm": 3.0,
+        "max_depth_fraction": 0.6,
+        "stiffness_N_per_mm": 100.0,
+        "overshoot_margin": 0.1,
+    },
     "pendant": {"vendor_id": 0x256F, "product_id": 0xC635, "deadband": 0.15},
 }
 RIG_NUMERIC = [(t, k) for t, body in RIG.items() for k, v in body.items() if not isinstance(v, str)]
@@ -675,3 +683,18 @@ def test_property_import_metadata_loads_or_names_file_and_key(meta, cells):
             ), message
             return
         assert frames == 2
+
+
+def test_a_binary_file_given_as_the_rig_config_is_one_line(tmp_path):
+    """`rig status --config notrun.h5` once printed `'utf-8' codec can't decode …`, naming nothing."""
+    from typer.testing import CliRunner
+
+    from cli.rig_app import app
+
+    not_a_config = tmp_path / "notrun.h5"
+    not_a_config.write_bytes(b"\x89HDF\r\n\x1a\n\x00\x00\xff\xfe")
+    result = CliRunner().invoke(app, ["status", "--config", str(not_a_config)])
+    assert result.exit_code == 1
+    assert one_line(result.output).strip() == (
+        f"error: {not_a_config}: [-] not a rig config: byte 0 is not UTF-8 text (a rig config is a TOML text file)"
+    )

@@ -128,6 +128,7 @@ max_speed = 2.0
 [safety]
 max_force_N = [5.0, 5.0, 20.0]
 max_torque_Nmm = [100.0, 100.0, 100.0]
+gel_thickness_mm = 3.0
 """
 
 

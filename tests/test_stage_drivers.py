@@ -149,9 +149,12 @@ def test_zaber_move_vel_runs_until_stop(zaber_link, world, manual_clock):
     # 34402 = 1 mm/s: 1 / 0.047625e-3 µsteps/s × 1.6384 (manual, "move vel", "maxspeed").
     assert _exchange(zaber_link, b"/1 1 move vel 34402\n") == [b"@01 1 OK BUSY -- 0\r\n"]
     manual_clock.advance(2.0)
-    assert _exchange(zaber_link, b"/1 1 stop\n") == [b"@01 1 OK IDLE -- 0\r\n"]
+    # A stopping stage decelerates (at its accel setting, 205 = 59.6 mm/s²) and replies BUSY.
+    assert _exchange(zaber_link, b"/1 1 stop\n") == [b"@01 1 OK BUSY -- 0\r\n"]
     moved = world.stages["x"].position(manual_clock.now()) - 12.5
-    assert 1.9 < moved < 2.0  # 2 s at 1 mm/s less the 0.05 s ramp (20 mm/s²)
+    assert 1.9 < moved < 2.0  # 2 s at 1 mm/s less the 17 ms ramp up
+    manual_clock.advance(0.1)  # the 1 ms reaction and the 17 ms ramp down
+    assert _exchange(zaber_link, b"/1 1 get pos\n")[0].startswith(b"@01 1 OK IDLE")
     assert _exchange(zaber_link, b"/1 1 move vel -34402\n") == [b"@01 1 OK BUSY -- 0\r\n"]
     manual_clock.advance(60.0)  # stops at the travel's end
     assert _exchange(zaber_link, b"/1 1 get pos\n") == [b"@01 1 OK IDLE -- 0\r\n"]

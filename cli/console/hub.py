@@ -55,6 +55,7 @@ class Hub:
         self._now = now  # the rig clock: frame capture times are on it
         self.clients: set[Client] = set()
         self.controller: Client | None = None
+        self.rig_status: dict | None = None  # who holds the rig (worker.rig_status), told to every page
         self.latencies_s: deque[float] = deque(maxlen=LATENCIES_KEPT)
         self.drawn_at: deque[float] = deque(maxlen=LATENCIES_KEPT)  # time.monotonic() of each ack
 
@@ -77,6 +78,10 @@ class Hub:
                 c.flow = flow  # latest wins, as frames
                 c.wake.set()
 
+    def on_rig(self, status: dict) -> None:
+        self.rig_status = status
+        self.broadcast(status)
+
     def flow_wanted(self) -> int:
         return sum(c.wants_flow for c in self.clients)
 
@@ -94,6 +99,8 @@ class Hub:
     # -- clients --------------------------------------------------------------------------------
     def join(self, client: Client) -> None:
         self.clients.add(client)
+        if self.rig_status is not None:
+            self.tell(client, self.rig_status)
         self.tell(client, self.control_message(client))
 
     def leave(self, client: Client) -> None:

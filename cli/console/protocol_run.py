@@ -61,7 +61,7 @@ class InterruptibleClock:
             remaining -= part
 
     def _raise_once(self) -> None:
-        from rig.motion import MotionInterrupted
+        from rig.interruption import MotionInterrupted
 
         with self._lock:
             if self._why is None or self._fired:

@@ -5,6 +5,10 @@ out; commands and frame acks in), ``/api/info``, ``/api/stats`` (frames drawn, l
 ``/api/runs``, ``/api/run``, ``/api/run/image`` and ``/api/run/flow`` (the run browser),
 ``/api/progress`` (runs being written, from their progress sidecars).
 
+A WebSocket message must be a JSON object with a ``type``; anything else (not JSON, an array,
+a number, binary, a field of the wrong type) is answered with a ``refused`` message naming
+what was expected, and the link stays up: never a traceback.
+
 Bound to 127.0.0.1 by default. On any other address every request needs the access token
 printed at start (``?token=`` once, then a cookie); WebSockets from another origin are refused
 either way, so a web page elsewhere cannot drive the rig through the browser.
@@ -16,6 +20,7 @@ import asyncio
 import contextlib
 import hmac
 import json
+import logging
 import secrets
 import signal
 import socket
@@ -39,6 +44,8 @@ from cli.console.runs import ProgressWatch, RunLibrary, run_flow, run_image, run
 from cli.console.worker import Command, RigWorker
 from common.errors import ToolError
 from common.sensors import has_markers
+
+log = logging.getLogger("rig.console")
 
 STATIC = Path(__file__).parent / "static"
 LOOPBACK = ("127.0.0.1", "localhost", "::1")
@@ -121,6 +128,7 @@ def build_app(options: ConsoleOptions) -> Starlette:
                 on_state=lambda state: loop.call_soon_threadsafe(hub.on_state, state),
                 on_frame=lambda frame: loop.call_soon_threadsafe(hub.on_frame, frame),
                 on_event=lambda level, text: loop.call_soon_threadsafe(hub.on_event, level, text),
+                on_rig=lambda status: loop.call_soon_threadsafe(hub.on_rig, status),
             )
             if has_markers(options.sensor):
                 options.flow = MarkerFlow(lambda flow: loop.call_soon_threadsafe(hub.on_flow, flow))
@@ -144,6 +152,7 @@ def build_app(options: ConsoleOptions) -> Starlette:
             {
                 "live": worker is not None,
                 "rig_error": worker.error if worker is not None else None,
+                "rig": worker.rig_status if worker is not None else None,  # who holds the rig
                 "axes": list(rig.axes) if rig is not None else [],
                 "components": ["Fx", "Fy", "Fz", "Mx", "My", "Mz"],
                 "open_run": options.open_run,
@@ -206,9 +215,21 @@ def build_app(options: ConsoleOptions) -> Starlette:
         pump = asyncio.create_task(_pump(hub, client))
         try:
             while True:
-                message = json.loads(await websocket.receive_text())
-                _handle(hub, worker, client, message, options.flow)
-        except (WebSocketDisconnect, json.JSONDecodeError, RuntimeError):
+                received = await websocket.receive()
+                if received["type"] == "websocket.disconnect":
+                    break
+                message = _message(received.get("text"))
+                if message is None:
+                    hub.tell(client, {"type": "refused", "text": MALFORMED})
+                    continue
+                try:
+                    _handle(hub, worker, client, message, options.flow)
+                except Exception as exc:  # a message nothing checked for: refused, and the link lives on
+                    log.error(
+                        "console: message %.200r from %s not handled: %s: %s", message, peer, type(exc).__name__, exc
+                    )
+                    hub.tell(client, {"type": "refused", "text": f"message not handled: {type(exc).__name__}: {exc}"})
+        except (WebSocketDisconnect, RuntimeError):
             pass
         finally:
             hub.leave(client)
@@ -258,6 +279,20 @@ async def _pump(hub: Hub, client: Client) -> None:
         pass  # the browser closed or the server is stopping: nothing left to deliver
 
 
+MALFORMED = 'malformed message: expected a JSON object such as {"type": "stop"}'
+
+
+def _message(text: str | None) -> dict | None:
+    """A browser's message: a JSON object, else None (binary, not JSON, an array, a number…)."""
+    if text is None:
+        return None
+    try:
+        message = json.loads(text)
+    except (ValueError, RecursionError):  # not JSON, or nested deeper than the parser goes
+        return None
+    return message if isinstance(message, dict) else None
+
+
 def _handle(hub: Hub, worker: RigWorker | None, client: Client, message: dict, flow: MarkerFlow | None = None) -> None:
     """One message from a browser."""
     kind = message.get("type")
@@ -290,6 +325,13 @@ def _handle(hub: Hub, worker: RigWorker | None, client: Client, message: dict, f
     if kind not in ("jog", "home", "zero", "run_protocol"):
         hub.tell(client, {"type": "refused", "text": f"unknown command {kind!r}"})
         return
+    axis = message.get("axis") or None
+    if axis is not None and not isinstance(axis, str):
+        hub.tell(client, {"type": "refused", "text": f"{kind} refused: axis {axis!r} is not an axis name"})
+        return
+    if worker.rig_status["state"] not in ("open", "opening"):  # held elsewhere, failed or closed
+        hub.tell(client, {"type": "refused", "text": f"{kind} refused: no rig ({worker.error or 'closed'})"})
+        return
     if hub.controller is not client:
         holder = hub.controller.peer if hub.controller else "nobody"
         hub.tell(client, {"type": "refused", "text": f"{kind} refused: take control first (held by {holder})"})
@@ -308,7 +350,6 @@ def _handle(hub: Hub, worker: RigWorker | None, client: Client, message: dict, f
             return
         worker.submit(Command("protocol", name=protocol.name, origin=origin, who=client.peer))
         return
-    axis = message.get("axis") or None
     step = _number(message.get("step"))
     if kind == "jog":
         if not abs(step) <= MAX_STEP:
@@ -323,7 +364,7 @@ def _number(value) -> float:
     """A number from a browser's message; NaN when it is not one (refused further on)."""
     try:
         return float(value)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):  # OverflowError: an integer of 400 digits
         return float("nan")
 
 

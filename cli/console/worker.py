@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import contextlib
 import logging
+import os
 import queue
 import threading
 from collections import deque
@@ -23,7 +24,7 @@ from typing import Any
 import numpy as np
 
 from common.errors import ToolError
-from rig.errors import DeviceTimeout, RigError
+from rig.errors import DeviceBusy, DeviceTimeout, RigError
 
 log = logging.getLogger("rig.console")
 
@@ -57,6 +58,26 @@ class FrameOut:
     width: int
     height: int
     jpeg: bytes
+
+
+def rig_status(state: str, rig: Any = None, error: BaseException | None = None) -> dict:
+    """What the page shows about the rig: ``opening``, ``open`` (this console, pid N, holds its
+    devices), ``busy`` (another process holds one: its pid and command), ``failed``, ``closed``."""
+    status: dict[str, Any] = {"type": "rig", "state": state, "pid": os.getpid()}
+    claim = getattr(rig, "claim", None)
+    if claim is not None:
+        status.update(devices=claim.devices_text(), holder=claim.holder_line())
+    if error is not None:
+        status["error"] = str(error) if isinstance(error, ToolError) else f"{type(error).__name__}: {error}"
+    if isinstance(error, DeviceBusy):
+        status.update(
+            device=error.device,
+            roles=error.roles,
+            holder_pid=error.pid,
+            holder_command=error.command,
+            holder_since=error.since,
+        )
+    return status
 
 
 @contextlib.contextmanager
@@ -113,6 +134,7 @@ class RigWorker:
         self._closing = threading.Event()
         self.ready = threading.Event()  # set once the rig is open (or failed to open: see ``error``)
         self.error: str | None = None
+        self.rig_status: dict = rig_status("opening")  # who holds the rig, for the page
         self.errors_seen = 0  # unexpected errors logged and survived (a bug or a broken device)
         self.rig: Any = None
         self._sim: Any = None
@@ -133,11 +155,17 @@ class RigWorker:
         on_state: Callable[[dict], object],
         on_event: Callable[[str, str], object],
         on_frame: Callable[[FrameOut], object],
+        on_rig: Callable[[dict], object] = lambda status: None,
     ) -> None:
         """Where snapshots go (called from this worker's thread); set before ``start``."""
         self._on_state = on_state
         self._on_event = on_event
         self._on_frame = on_frame
+        self._on_rig = on_rig
+
+    def _set_rig_status(self, status: dict) -> None:
+        self.rig_status = status
+        self._on_rig(status)
 
     def start(self) -> None:
         self._thread.start()
@@ -176,16 +204,24 @@ class RigWorker:
 
     # -- the thread -----------------------------------------------------------------------
     def _run(self) -> None:
+        opened = False
         try:
             with self._opener() as (rig, sim):
-                self.rig, self._sim = rig, sim
+                self.rig, self._sim, opened = rig, sim, True
+                self._set_rig_status(rig_status("open", rig))
+                for note in getattr(rig.claim, "notes", ()):  # stale locks taken over
+                    self._on_event("warn", note)
                 self.ready.set()
                 self._on_event("info", f"rig open: {', '.join(rig.axes) or 'no axes'}; camera {self._camera_name()}")
                 self._loop()
-        except Exception as exc:  # opening failed, or closing did: the page says so
+        except Exception as exc:  # opening failed (a device held elsewhere: who holds it), or closing did
             self.error = f"{type(exc).__name__}: {exc}" if not isinstance(exc, ToolError) else str(exc)
             log.error("console rig: %s", self.error)
+            busy = isinstance(exc, DeviceBusy) and not opened
+            self._set_rig_status(rig_status("busy" if busy else "failed", error=exc))
             self._on_event("error", f"rig: {self.error}")
+        else:
+            self._set_rig_status(rig_status("closed"))
         finally:
             self.rig = None
             self.ready.set()
@@ -265,11 +301,11 @@ class RigWorker:
         last = rig.last_targets.get(axis)  # as `rig jog`: steps from the last target do not accumulate rounding
         base = last if last is not None and abs(here - last) <= rig.tolerance(axis) else here
         target = base + step
-        speeds = rig.check_targets({axis: target})  # refused before a session opens: nothing moves
+        rig.check_targets({axis: target})  # refused before a session opens: nothing moves
         self.activity = f"{axis} → {target:.4f} {cfg.unit}"
-        deadline = rig.clock.now() + 5.0 + 2.0 * abs(step) / speeds[axis]
-        with rig.motion("console jog") as m:
-            guard = m.start_move({axis: target})
+        with rig.motion("console jog", on_note=lambda text: self._on_event("warn", text)) as m:
+            guard = m.start_move({axis: target})  # at the speed envelope's pace (a clamp is said as an event)
+            deadline = rig.clock.now() + 5.0 + 2.0 * m.time_left_s()
             self._on_event("info", f"{command.who or 'console'}: {axis} moving to {target:.4f} {cfg.unit}")
             stopped = self._follow(m, (axis,), guard, deadline)
         final = rig.axes[axis].position()
@@ -286,14 +322,13 @@ class RigWorker:
         stopped = ""
         poll_s = self.rig.config.safety.poll_s
         while True:
-            if not stopped and self._closing.is_set():
-                m.stop()
-                stopped = "console closing"
+            if self._closing.is_set():  # Ctrl-C or a signal to the console: the session stops and lifts z
+                raise RigError("the console is closing: motion stopped")
             moving = m.monitor(names, guard, "console jog")
             self._io()
             if not moving and m.settled:
                 return stopped
-            if self.rig.clock.now() > deadline:
+            if self.rig.clock.now() > deadline + m.slowed_s:
                 raise DeviceTimeout(", ".join(names), "console jog", None, "motion did not finish in time")
             try:
                 command = self._commands.get(timeout=poll_s)
@@ -312,7 +347,7 @@ class RigWorker:
         names = (command.axis,) if command.axis else None
         self.activity = f"homing {command.axis or 'all axes'}"
         self._publish_state(force=True)
-        with self.rig.motion("console home") as m:
+        with self.rig.motion("console home", on_note=lambda text: self._on_event("warn", text)) as m:
             m.home_axes(names)  # not interruptible from the page yet: Ctrl-C in the terminal is
         self._on_event("info", f"homed {command.axis or 'all axes'}")
 

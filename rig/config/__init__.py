@@ -27,6 +27,39 @@ from rig.config.registry import (  # noqa: F401
 
 AXIS_NAMES = ("x", "y", "z", "theta")
 
+# The speed envelope's defaults (docs/safety.md, "Speed envelope"). The stiffnesses are worst
+# cases of the simulated GelSight Mini gel (3 mm, 0.25 MPa) with a rigid 20 mm plate covering
+# the pad, rounded up (docs/simulator.md, "Contact stiffness"); a stiffer gel, a thinner one or
+# a stiffer object needs its own numbers. The window: a steel face on acrylic, ~30 N/µm for 8 mm.
+DEFAULT_MAX_DEPTH_FRACTION = 0.6
+# The floor must stay clear of the window with the surface known only so well: a first contact
+# is seen up to DETECTION_LAG_MM late (a 4 mm sphere needs ~0.2 mm for 0.05 N), and a remembered
+# surface is kept against a lower first contact within min(0.25 mm, a tenth of the gel). The
+# deepest fraction a config may ask is what leaves 5 % of the gel below all of that.
+DETECTION_LAG_MM = 0.2
+SURFACE_TOLERANCE_MM = 0.25
+SURFACE_TOLERANCE_FRACTION = 0.1
+
+
+def surface_tolerance_mm(thickness_mm: float) -> float:
+    return min(SURFACE_TOLERANCE_MM, SURFACE_TOLERANCE_FRACTION * thickness_mm)
+
+
+def deepest_fraction(thickness_mm: float) -> float:
+    """The largest max_depth_fraction a gel this thick allows (0.80 for 3 mm, 0.65 for 1 mm)."""
+    return 0.95 - (surface_tolerance_mm(thickness_mm) + DETECTION_LAG_MM) / thickness_mm
+
+
+DEFAULT_STIFFNESS_N_PER_MM = 100.0
+DEFAULT_SHEAR_STIFFNESS_N_PER_MM = 20.0
+DEFAULT_TWIST_STIFFNESS_NMM_PER_DEG = 10.0
+DEFAULT_WINDOW_STIFFNESS_N_PER_MM = 60000.0  # a rigid plate over a 14 mm pad on acrylic: ~57 N/µm
+DEFAULT_OVERSHOOT_MARGIN = 0.1
+# An axis's stop: the device's reaction to the stop command (the wire and the host are measured
+# when the rig opens) and its deceleration. Conservative where a config does not say.
+DEFAULT_STOP_LATENCY_S = 0.01
+DEFAULT_STOP_DECEL = 20.0  # mm/s² (deg/s² for a rotary axis)
+
 
 class KindKeys:
     """A device config whose kind-specific keys (``options``, from its registry row) read
@@ -54,6 +87,8 @@ class AxisConfig(KindKeys):
     timeout_s: float = 0.5
     retries: int = 2
     requires_home: bool = True
+    stop_latency_s: float = DEFAULT_STOP_LATENCY_S  # the device's reaction to a stop command
+    stop_decel: float = DEFAULT_STOP_DECEL  # unit/s²: how fast a stop brings the axis to rest
     # the kind's own keys (registry row): zaber scale, axis_number; pr_drive pulses_per_rev, travel_per_rev
     options: Mapping[str, Any] = field(default_factory=dict, hash=False)
 
@@ -90,6 +125,15 @@ class SafetyConfig:
     max_force_N: tuple[float, float, float]  # |Fx|, |Fy|, |Fz| limits
     max_torque_Nmm: tuple[float, float, float]  # |Mx|, |My|, |Mz| limits
     poll_s: float = 0.02  # how often a moving rig checks the wrench
+    # The depth guard and the speed envelope (rig/envelope.py, docs/safety.md). gel_thickness_mm
+    # is required where a z axis is configured: a guessed gel would put the window behind it anywhere.
+    gel_thickness_mm: float | None = None
+    max_depth_fraction: float = DEFAULT_MAX_DEPTH_FRACTION  # no deeper below the gel surface than this × thickness
+    stiffness_N_per_mm: float = DEFAULT_STIFFNESS_N_PER_MM  # worst-case dFz/dz of a contact inside the gel
+    shear_stiffness_N_per_mm: float = DEFAULT_SHEAR_STIFFNESS_N_PER_MM  # worst-case dFx/dx while pressed
+    twist_stiffness_Nmm_per_deg: float = DEFAULT_TWIST_STIFFNESS_NMM_PER_DEG  # worst-case dMz/dθ while pressed
+    window_stiffness_N_per_mm: float = DEFAULT_WINDOW_STIFFNESS_N_PER_MM  # the indenter on the window behind the gel
+    overshoot_margin: float = DEFAULT_OVERSHOOT_MARGIN  # a stop may overshoot a limit by this fraction of it
 
 
 @dataclass(frozen=True)
@@ -174,6 +218,8 @@ def _axis(path: str, name: str, data: Any) -> AxisConfig:
         device=t.get("device", int, 1, low=0, high=247),
         offset=t.get("offset", float, 0.0, low=-10 * TRAVEL_LIMIT, high=10 * TRAVEL_LIMIT),
         requires_home=t.get("requires_home", bool, True),
+        stop_latency_s=t.get("stop_latency_s", float, DEFAULT_STOP_LATENCY_S, low=0.0, high=MAX_TIMEOUT_S),
+        stop_decel=t.get("stop_decel", float, DEFAULT_STOP_DECEL, positive=True, high=1e6),
         options=_kind_keys(t, row.keys),
         **_wire(t, row),
     )
@@ -224,13 +270,45 @@ def _three(v: tuple[float, ...]) -> tuple[float, float, float]:
 
 def _safety(path: str, data: Any) -> SafetyConfig:
     t = Table(path, "safety", data)
+    thickness = t.get("gel_thickness_mm", float, None, low=0.3, high=50.0)
     cfg = SafetyConfig(
         max_force_N=_three(t.vector("max_force_N", 3, positive=True, high=MAX_FORCE_LIMIT_N)),
         max_torque_Nmm=_three(t.vector("max_torque_Nmm", 3, positive=True, high=MAX_TORQUE_LIMIT_NMM)),
         poll_s=t.get("poll_s", float, 0.02, low=0.001, high=1.0),
+        gel_thickness_mm=thickness,
+        max_depth_fraction=_depth_fraction(t, thickness),
+        stiffness_N_per_mm=t.get("stiffness_N_per_mm", float, DEFAULT_STIFFNESS_N_PER_MM, positive=True, high=1e6),
+        shear_stiffness_N_per_mm=t.get(
+            "shear_stiffness_N_per_mm", float, DEFAULT_SHEAR_STIFFNESS_N_PER_MM, positive=True, high=1e6
+        ),
+        twist_stiffness_Nmm_per_deg=t.get(
+            "twist_stiffness_Nmm_per_deg", float, DEFAULT_TWIST_STIFFNESS_NMM_PER_DEG, positive=True, high=1e6
+        ),
+        window_stiffness_N_per_mm=t.get(
+            "window_stiffness_N_per_mm", float, DEFAULT_WINDOW_STIFFNESS_N_PER_MM, positive=True, high=1e8
+        ),
+        overshoot_margin=t.get("overshoot_margin", float, DEFAULT_OVERSHOOT_MARGIN, positive=True, high=1.0),
     )
     t.done()
     return cfg
+
+
+def _depth_fraction(t: Table, thickness: float | None) -> float:
+    """The depth floor's fraction: the default (0.6) or what the gel allows, if less; a larger
+    one asked for is refused naming the largest."""
+    asked = t.get("max_depth_fraction", float, None, positive=True, high=0.95)
+    if thickness is None:
+        return DEFAULT_MAX_DEPTH_FRACTION if asked is None else asked
+    deepest = deepest_fraction(thickness)
+    if asked is None:
+        return round(min(DEFAULT_MAX_DEPTH_FRACTION, deepest), 3)
+    if asked > deepest + 1e-9:
+        raise t.error(
+            "max_depth_fraction",
+            f"must be <= {deepest:.2f} for a {thickness:g} mm gel (the floor keeps 5 % of the gel beyond the "
+            f"surface's uncertainty, {surface_tolerance_mm(thickness) + DETECTION_LAG_MM:.2f} mm), got {asked!r}",
+        )
+    return asked
 
 
 def _pendant(path: str, data: Any) -> PendantConfig:
@@ -269,6 +347,13 @@ def parse_config(text: str, path: str = "<string>") -> RigConfig:
         )
     if axes and gauge is None:
         raise ConfigError(path, "gauge", "is required when axes are configured: force limits need a force gauge")
+    if "z" in axes and safety is not None and safety.gel_thickness_mm is None:
+        raise ConfigError(
+            path,
+            "safety.gel_thickness_mm",
+            "is required when a z axis is configured: the depth guard keeps the indenter off the window "
+            "behind the gel (your sensor profile's [gel] thickness_mm, in mm)",
+        )
     _check_ports(path, axes, gauge)
     return RigConfig(path=path, name=name, axes=axes, gauge=gauge, camera=camera, safety=safety, pendant=pendant)
 
@@ -306,6 +391,10 @@ def load_config(path: str | Path) -> RigConfig:
         text = p.read_text()
     except FileNotFoundError as exc:
         raise ConfigError(str(p), "-", "file not found") from exc
+    except UnicodeDecodeError as exc:
+        raise ConfigError(
+            str(p), "-", f"not a rig config: byte {exc.start} is not UTF-8 text (a rig config is a TOML text file)"
+        ) from None
     except OSError as exc:
         raise ConfigError(str(p), "-", f"cannot read: {exc}") from exc
     return parse_config(text, str(p))

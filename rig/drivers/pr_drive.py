@@ -52,7 +52,13 @@ class PrDriveAxis:
         return pulses * self.scale + self.offset
 
     def speed_to_rpm(self, speed: float) -> int:
+        """Whole rpm (the drive's resolution), at least 1 (``min_speed``)."""
         return max(1, round(abs(speed / self.travel_per_rev) * 60.0))
+
+    @property
+    def min_speed(self) -> float:
+        """The slowest speed the drive runs (1 rpm), unit/s: a slower one cannot be commanded."""
+        return abs(self.travel_per_rev) / 60.0
 
     def _read(self, address: int, count: int) -> list[int]:
         return self.bus.read_holding(self.device_id, address, count, device=self.label)

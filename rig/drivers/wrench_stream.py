@@ -100,6 +100,12 @@ class WrenchBuffer:
         with self._cond:
             return self._samples[-1] if self._samples else None
 
+    def newest(self, n: int) -> list[Wrench]:
+        """The newest ``n`` samples (fewer when the buffer holds fewer), oldest first."""
+        with self._cond:
+            k = min(n, len(self._samples))
+            return [self._samples[i] for i in range(len(self._samples) - k, len(self._samples))]
+
     def since(self, t_s: float) -> list[Wrench]:
         """Samples stamped after ``t_s``, oldest first: a reader emptying the buffer between
         captures touches only what came since (``_first_after``)."""
@@ -364,6 +370,11 @@ class GaugeBase:
         if self._reader is None:
             return Wrench.from_array(self.clock.now(), self._poll_raw())
         self._reader.check()
+        if self._reader.inline and hasattr(self.clock, "add_listener"):
+            # A simulated rig on discrete time: what its gauge sent up to this instant is on the
+            # line; take it now, so that the newest sample is this instant's whatever the
+            # reader thread's scheduling (the guard's checks are then the same on every run).
+            self._reader.take_in_flight()
         sample = self.buffer.latest()
         now = self.clock.now()
         if sample is None or now - sample.t_s > self.stale_after_s:
@@ -416,7 +427,8 @@ class GaugeBase:
             samples = [self._poll_raw() for _ in range(n_samples)]
         else:
             before = self.buffer.total
-            self._await(lambda timeout: self.buffer.wait_new(before, n_samples, timeout_s=timeout), "tare")
+            for k in range(1, n_samples + 1):  # each sample within _await's budget: a slow gauge takes its time
+                self._await(lambda timeout, k=k: self.buffer.wait_new(before, k, timeout_s=timeout), "tare")
             samples = [s.as_array() for s in self.buffer.since(float("-inf"))[-n_samples:]]
         self.bias = np.mean(samples, axis=0)
         return self.bias

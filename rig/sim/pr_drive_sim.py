@@ -15,6 +15,16 @@ from rig.transport.modbus_bus import join_int32, split_int32
 
 STALL_ALARM = 0x0180  # the alarm code the simulator reports for a stalled motor (ASSUMED code)
 PR0_REGISTERS = range(reg.PR0_MODE, reg.PR0_MODE + reg.PR0_LENGTH)
+# Stopping (docs/simulator.md, "Stopping"). 0x0040 on 0x6002 is an emergency stop: the drive
+# ramps down at its emergency-stop deceleration. ASSUMED (neither its Pr parameter nor its
+# default is in the manual pages at hand): 50 ms per 1000 rpm, the unit of the PR0 ramps
+# (pr_registers.py), i.e. 1333 deg/s² on the simulated rig's 4 deg/rev worm stage.
+EMERGENCY_DECEL_MS_PER_KRPM = 50
+# The drive acts on a request once the RTU frame has ended: 3.5 characters of silence, a
+# fixed 1.75 ms above 19200 baud (Modbus over Serial Line v1.02 §2.5.1.1; the drive's
+# default wire is 38400 baud), plus its command processing, ASSUMED 2 ms.
+FRAME_GAP_S = 0.00175
+PROCESSING_S = 0.002
 
 
 class PrDriveSim:
@@ -39,6 +49,8 @@ class PrDriveSim:
         self.zero_pulses = 0  # set by CTRL_SET_ZERO: command position 0 here
         self.homed_since_power_up = stage.homed
         self.commanded = False  # a path or homing was triggered since power-up
+        emergency = krpm_ramp(EMERGENCY_DECEL_MS_PER_KRPM, travel_per_rev)
+        stage.configure(stop_decel=emergency, abrupt_decel=emergency, stop_reaction_s=FRAME_GAP_S + PROCESSING_S)
 
     @property
     def pulse(self) -> float:
@@ -117,6 +129,11 @@ class PrDriveSim:
         elif value == reg.CTRL_SET_ZERO:
             self.zero_pulses = round(self.stage.position(now_s) / self.pulse)
         elif value == reg.CTRL_EMERGENCY_STOP:
-            self.stage.stop(now_s)
+            self.stage.stop(now_s, abrupt=True)
         elif value != 0:
             raise ModbusException(ILLEGAL_DATA_VALUE)
+
+
+def krpm_ramp(ms_per_krpm: float, travel_per_rev: float) -> float:
+    """A drive ramp given as ms per 1000 rpm, in stage units/s²."""
+    return 1000.0 / 60.0 * abs(travel_per_rev) / (ms_per_krpm / 1000.0)

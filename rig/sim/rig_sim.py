@@ -9,6 +9,8 @@ exactly as they would open hardware.
 
 from __future__ import annotations
 
+import math
+
 from objects.object_file import is_object_file, load_object_file
 from rig.clock import Clock, SystemClock
 from rig.config import RigConfig, parse_config
@@ -18,6 +20,7 @@ from rig.sim.link import SimServer
 from rig.sim.modbus_rtu import RtuServer
 from rig.sim.pr_drive_sim import PrDriveSim
 from rig.sim.served import ServedDevice
+from rig.sim.stage import Stopping
 from rig.sim.world import SimWorld, WorldSpec
 from rig.sim.zaber_sim import ZaberChainSim, ZaberDeviceSim
 from sensor_sim.world_contact import RIG_CELLS, rig_contact
@@ -51,10 +54,14 @@ class SimulatedRig:
         contact=None,
         gauge_rate_hz: float = 100.0,
         profile=None,
+        gauge_at_every_step: bool = True,
     ):
         """``profile``: a ``sensor_sim.profile.SensorProfile`` for the gel (thickness, modulus,
         field of view) and the camera (optics, background, noise, frame size); None: the
-        shipped default. Its frame must be square (the simulated camera renders a square pad)."""
+        shipped default. Its frame must be square (the simulated camera renders a square pad).
+        ``gauge_at_every_step=False``: on a discrete-event clock the gauge reports only at its
+        rate, not also at every step of the clock (the overshoot tests: a 10 Hz gauge's samples
+        are 100 ms apart, as on hardware)."""
         gauge_row = kind("gauge", gauge, path="<built-in simulated rig>", key="gauge")
         if gauge_row.simulator is None:
             raise ValueError(f"gauge kind {gauge!r} has no simulator in its registry row")
@@ -103,6 +110,9 @@ class SimulatedRig:
                 self.world, self.clock, transport=transport, rate_hz=gauge_rate_hz
             )
             self.servers.update(self.gauge_sim.servers)
+            schedule = getattr(self.gauge_sim.model, "schedule", None)
+            if schedule is not None and not gauge_at_every_step:
+                schedule.report_on_advance = False
         except Exception:
             self.close()
             raise
@@ -126,6 +136,7 @@ class SimulatedRig:
                 f"max_speed = {s.max_speed!r}",
                 "jog_speed = 1.0",
                 f"timeout_s = {device_timeout_s!r}",
+                *self._stop_keys(axis, abrupt=False),
                 "",
             ]
         g, s = geo["theta"], stage_specs["theta"]
@@ -142,6 +153,7 @@ class SimulatedRig:
             f"max_speed = {s.max_speed!r}",
             "jog_speed = 5.0",
             f"timeout_s = {device_timeout_s!r}",
+            *self._stop_keys("theta", abrupt=True),  # the PR drive's stop is its emergency stop
             "",
         ]
         lines += ["[gauge]", f'driver = "{self.gauge_kind}"']
@@ -160,8 +172,26 @@ class SimulatedRig:
             if solver is not None:  # the rendered pad's calibration, stored in every run file
                 lines.append(f"mm_per_px = {solver.geometry.width_mm / self.camera_px!r}")
             lines.append("")
-        lines += ["[safety]", "max_force_N = [10.0, 10.0, 40.0]", "max_torque_Nmm = [300.0, 300.0, 200.0]", ""]
+        lines += ["[safety]", "max_force_N = [10.0, 10.0, 40.0]", "max_torque_Nmm = [300.0, 300.0, 200.0]"]
+        lines += [f"gel_thickness_mm = {self.gel_thickness_mm!r}", ""]
         return "\n".join(lines)
+
+    def _stop_keys(self, axis: str, *, abrupt: bool) -> list[str]:
+        """The config's stop_latency_s and stop_decel: what the simulated device does, as a
+        user copies them from a stage's manual (docs/hardware.md)."""
+        stopping = self.world.stages[axis].stopping
+        decel = stopping.abrupt_decel if abrupt else stopping.decel
+        return [f"stop_latency_s = {stopping.reaction_s!r}", f"stop_decel = {round(decel, 3)!r}"]
+
+    @property
+    def gel_thickness_mm(self) -> float:
+        """The simulated gel's thickness (its profile's, or the contact model's own), as a rig
+        config states it for the depth guard; 3 mm for a contact model without a gel."""
+        if self.profile is not None:
+            return float(self.profile.gel_thickness_mm)
+        solver = getattr(self.world.contact, "solver", None)
+        thickness = getattr(getattr(solver, "gel", None), "thickness_mm", None)
+        return float(thickness) if thickness is not None and math.isfinite(thickness) else 3.0
 
     def config(self, *, with_camera: bool = True) -> RigConfig:
         return parse_config(self.config_toml(with_camera=with_camera), "<built-in simulated rig>")
@@ -184,6 +214,12 @@ class SimulatedRig:
     def netft(self):
         """The simulated ATI Net F/T when that is the gauge (its UDP and HTTP ports), else None."""
         return self.gauge_sim.model if self.gauge_kind == "ati_netft" and self.gauge_sim is not None else None
+
+    def stopping(self) -> dict[str, Stopping]:
+        """Per axis, how its simulated device stops: the stop deceleration, the reaction time
+        before it and the emergency deceleration (mm or deg, as the axis), as the device's
+        settings are now (docs/simulator.md, "Stopping")."""
+        return {axis: stage.stopping for axis, stage in self.world.stages.items()}
 
     def serve_camera(self) -> CameraStreamServer:
         """Serve the camera on a loopback TCP port; ``config_toml()`` then names it (driver

@@ -22,6 +22,19 @@ from rig.sim.stage import SimStage, StageFault
 X_LSM025A_DEVICE_ID = 50030
 # Native acceleration: 1 data unit = 10000 / 1.6384 microsteps/s² (manual, "accel").
 ACCEL_UNITS_PER_USTEP_S2 = 1.6384 / 10000
+# Stopping (docs/simulator.md, "Stopping"). `stop` decelerates to rest at the device's
+# deceleration, and `set accel` sets the acceleration and the deceleration together: Zaber's
+# Stop command page (zaber.com/wiki/T-Series/Commands/Stop) and "Stop Behaviour" (A-Series:
+# the rate is Set Acceleration's, or Set Deceleration Only's), whose ASCII settings are
+# accel, motion.accelonly and motion.decelonly (ASCII manual, "Settings"). A second stop
+# while decelerating stops at once there; not modelled. `estop` stops without the
+# deceleration setting, yet a motor has a limit. ASSUMED (not in the pages at hand): the
+# largest ramp a 16-bit accel setting holds, 32767 units (9.5 m/s² at 0.047625 µm), 160x
+# the default 205 (59.6 mm/s²).
+ESTOP_ACCEL_NATIVE = 32767
+# From a command's last byte to the device acting on it: an integrated controller answers
+# within about 1 ms. ASSUMED (the figure this project works with; no manual gives one).
+REACTION_S = 0.001
 # Settings that belong to the device, not to an axis: asking them of axis 1 is
 # rejected DEVICEONLY (manual, "Reply Format", rejection reasons).
 DEVICE_SETTINGS = ("deviceid", "system.serial", "version", "version.build", "comm.packet.size.max", "system.axiscount")
@@ -32,7 +45,8 @@ class ZaberDeviceSim:
     stage: SimStage
     microstep: float  # stage units (mm or deg) per microstep
     maxspeed: int = 153600  # native velocity units (manual default for X-series stages)
-    accel: int = 205  # native acceleration units; settable, the stage's own ramp is used
+    accel: int = 205  # motion.accelonly, native units (the X-LSM default); `set accel` sets decel too
+    decel: int = 205  # motion.decelonly: a move's slowing down and the `stop` ramp
     device_id: int = X_LSM025A_DEVICE_ID
     serial: int = 0  # 0: the chain gives each device a distinct one
     version: str = "7.33"
@@ -41,12 +55,30 @@ class ZaberDeviceSim:
     packet_size_max: int = 80  # longest command line accepted (manual, comm.packet.size.max)
     pos_offset: float = 0.0  # stage position at native 0; `set pos` moves it, homing clears it
 
+    def __post_init__(self):
+        self.apply_ramps()
+
     # native units, in one place
     def to_native(self, position: float) -> int:
         return round((position - self.pos_offset) / self.microstep)
 
     def speed(self, native_velocity: int) -> float:
         return abs(native_velocity) / za.VELOCITY_UNITS_PER_USTEP_S * self.microstep
+
+    def acceleration(self, native_accel: int) -> float:
+        """Stage units/s² of a native acceleration (205 → 59.6 mm/s² at 0.047625 µm)."""
+        return native_accel / ACCEL_UNITS_PER_USTEP_S2 * self.microstep
+
+    def apply_ramps(self) -> None:
+        """The stage moves and stops as this device's settings say."""
+        decel = self.acceleration(self.decel)
+        self.stage.configure(
+            accel=self.acceleration(self.accel),
+            decel=decel,
+            stop_decel=decel,
+            stop_reaction_s=REACTION_S,
+            abrupt_decel=max(decel, self.acceleration(ESTOP_ACCEL_NATIVE)),
+        )
 
 
 class ZaberChainSim(RequestReplyDevice):
@@ -130,7 +162,7 @@ class ZaberChainSim(RequestReplyDevice):
                 return False, "BADCOMMAND"
             return True, " ".join([f"{len(flags):02d}", *flags])
         if words in (["stop"], ["estop"]):
-            dev.stage.stop(now_s)
+            dev.stage.stop(now_s, abrupt=words == ["estop"])
             return True, "0"
         if words == ["home"]:
             dev.pos_offset = 0.0  # the home switch is native 0
@@ -158,7 +190,9 @@ class ZaberChainSim(RequestReplyDevice):
             "resolution": dev.resolution,
             "pos": dev.to_native(dev.stage.position(now_s)),
             "maxspeed": dev.maxspeed,
-            "accel": dev.accel,
+            "accel": dev.accel,  # ASSUMED: accel reads back motion.accelonly
+            "motion.accelonly": dev.accel,
+            "motion.decelonly": dev.decel,
             "limit.min": lo,
             "limit.max": hi,
         }
@@ -169,7 +203,7 @@ class ZaberChainSim(RequestReplyDevice):
         return True, str(values[name])
 
     def _set(self, dev: ZaberDeviceSim, axis: int, name: str, text: str, now_s: float) -> tuple[bool, str]:
-        if name not in ("maxspeed", "accel", "pos"):
+        if name not in ("maxspeed", "accel", "motion.accelonly", "motion.decelonly", "pos"):
             return False, "BADCOMMAND"
         try:
             value = int(text)
@@ -181,7 +215,14 @@ class ZaberChainSim(RequestReplyDevice):
             return True, "0"
         if value <= 0:
             return False, "BADDATA"
-        setattr(dev, name, value)
+        if name == "maxspeed":
+            dev.maxspeed = value
+            return True, "0"
+        if name in ("accel", "motion.accelonly"):
+            dev.accel = value
+        if name in ("accel", "motion.decelonly"):
+            dev.decel = value
+        dev.apply_ramps()
         return True, "0"
 
     def _move(self, dev: ZaberDeviceSim, args: list[str], now_s: float) -> tuple[bool, str]:

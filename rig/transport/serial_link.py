@@ -1,9 +1,10 @@
 """Byte transport over a serial port URL (a device path, a pty, ``socket://host:port``).
 
 The only module that imports pyserial. Every read has a timeout; a vanished port
-becomes ``DeviceDisconnected``, an incomplete reply ``DeviceTimeout``. Interrupted
-system calls are retried (``rig.transport.eintr``). On a port served by an in-process
-simulator, reply timeouts follow the simulator's time (``rig.transport.peer``).
+becomes ``DeviceDisconnected``, an incomplete reply ``DeviceTimeout``, a port another
+process holds ``DeviceBusy`` (device paths are opened exclusively: ``rig.transport.exclusive``).
+Interrupted system calls are retried (``rig.transport.eintr``). On a port served by an
+in-process simulator, reply timeouts follow the simulator's time (``rig.transport.peer``).
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ import serial
 
 from rig.clock import SystemClock
 from rig.errors import DeviceDisconnected, DeviceTimeout
+from rig.transport import exclusive
 from rig.transport import peer as peers
 from rig.transport.eintr import TERMIOS_ERROR, retry_eintr
 
@@ -42,10 +44,11 @@ class TrackedPort:
     Everything else is delegated to the wrapped port.
     """
 
-    def __init__(self, port):
+    def __init__(self, port, *, exclusive_tty: bool = False):
         object.__setattr__(self, "_port", port)
         object.__setattr__(self, "bytes_read", 0)
         object.__setattr__(self, "bytes_written", 0)
+        object.__setattr__(self, "_exclusive_tty", exclusive_tty)  # TIOCEXCL set: cleared at close
 
     @property
     def in_waiting(self) -> int:
@@ -107,6 +110,12 @@ class TrackedPort:
     def flush(self) -> None:
         retry_eintr(self._port.flush)
 
+    def close(self) -> None:
+        fd = getattr(self._port, "fd", None)
+        if self._exclusive_tty and isinstance(fd, int):
+            exclusive.let_go(fd)
+        self._port.close()
+
     def __getattr__(self, name):
         return getattr(self._port, name)
 
@@ -115,17 +124,25 @@ class TrackedPort:
 
 
 def open_port(url: str, *, baudrate: int, timeout_s: float, device: str) -> TrackedPort:
-    """Open ``url`` with pyserial (8N1). Raises DeviceDisconnected naming the device and port."""
+    """Open ``url`` with pyserial (8N1); a device path exclusively (its node flock'd, TIOCEXCL).
+    Raises DeviceBusy when another process holds it, else DeviceDisconnected naming the port."""
+    lock = exclusive.lockable(url)
     try:
         # A simulator in this process drains its port from a thread that a loaded machine may
         # starve: its write deadline is the real-time stall limit, like its replies'.
         peer = peers.lookup(url)
         write_timeout_s = max(timeout_s, peer.stall_limit_s) if peer is not None else timeout_s
-        return TrackedPort(
-            serial.serial_for_url(url, baudrate=baudrate, timeout=timeout_s, write_timeout=write_timeout_s)
+        options = {"exclusive": True} if lock else {}
+        port = serial.serial_for_url(
+            url, baudrate=baudrate, timeout=timeout_s, write_timeout=write_timeout_s, **options
         )
     except (*PORT_ERRORS, ValueError) as exc:
+        busy = exclusive.busy_error(url, exc) if lock else None
+        if busy is not None:
+            raise busy from None
         raise DeviceDisconnected(device, f"open {url}", None, f"cannot open port {url}: {exc}") from exc
+    fd = getattr(port, "fd", None)
+    return TrackedPort(port, exclusive_tty=lock and isinstance(fd, int) and exclusive.hold(fd))
 
 
 class _RealTimeWait:

@@ -11,7 +11,7 @@ const HISTORY_S = 60;
 // What tests and the benchmark read: the page's own view of the rig.
 const state = {
   frames: 0, frameIndex: -1, frameT: null, wrench: null, axes: {}, control: null, events: [], run: null,
-  flow: null, flows: 0, runFlow: null, progress: [], progressPolls: 0,
+  flow: null, flows: 0, runFlow: null, progress: [], progressPolls: 0, rig: null,
   progressEveryMs: 1000,  // how often the progress panel asks (a test may ask more often)
 };
 window.rigConsole = state;
@@ -38,7 +38,7 @@ function connect() {
   const ws = new WebSocket((location.protocol === "https:" ? "wss://" : "ws://") + location.host + "/ws");
   ws.binaryType = "arraybuffer";
   live.ws = ws;
-  ws.onopen = () => setPill($("link-status"), "live", "ok");
+  ws.onopen = () => { if (rigUsable()) setPill($("link-status"), "live", "ok"); };
   ws.onclose = () => { setPill($("link-status"), "disconnected: reload the page", "bad"); setControl(null); };
   ws.onmessage = (event) => {
     if (event.data instanceof ArrayBuffer) drawFrame(event.data);
@@ -134,6 +134,7 @@ function onMessage(m) {
   else if (m.type === "flow") onFlow(m);
   else if (m.type === "event") addEvent(m.level, `${m.at} ${m.text}`);
   else if (m.type === "control") setControl(m);
+  else if (m.type === "rig") setRig(m);
   else if (m.type === "refused") { $("control-msg").textContent = m.text; addEvent("warn", m.text); }
 }
 
@@ -155,6 +156,27 @@ function setControl(m) {
   else setPill($("control-status"), "nobody has control", "");
   document.querySelectorAll(".needs-control").forEach((b) => { b.disabled = !mine; });
   if (mine) $("control-msg").textContent = "";
+}
+
+// Who holds the rig: this console (its pid), or, when a device is held elsewhere, that process.
+function rigUsable() { return !state.rig || state.rig.state === "open" || state.rig.state === "opening"; }
+
+function setRig(m) {
+  state.rig = m;
+  const pill = $("rig-status");
+  pill.hidden = false;
+  pill.title = m.holder || m.error || "";
+  if (m.state === "opening") setPill(pill, "opening the rig…", "");
+  else if (m.state === "open") setPill(pill, `rig held by this console (pid ${m.pid})`, "ok");
+  else if (m.state === "busy") {  // the pill says who; the line beside it (m.error) the whole story
+    setPill(pill, `rig busy: ${m.device} held by ${m.holder_pid ? "pid " + m.holder_pid : "another process"}`, "bad");
+  } else setPill(pill, m.state === "closed" ? "rig closed" : "rig failed to open", "bad");
+  if (rigUsable()) return;
+  // nothing live: no frame, no jog; the header says why and who holds the device
+  setPill($("link-status"), "no rig", "bad");
+  $("live").hidden = true;
+  $("control-status").hidden = true;
+  if (m.error) { const e = $("rig-error"); e.hidden = false; e.textContent = m.error; }
 }
 
 function onState(m) {
@@ -477,6 +499,7 @@ function setUpBrowser(openName) {
   const info = await (await fetch("api/info")).json();
   if (info.rig_error) { const e = $("rig-error"); e.hidden = false; e.textContent = info.rig_error; }
   if (info.live) setUpLive(info);
+  if (info.rig) setRig(info.rig);
   else { setPill($("link-status"), "run browser only", ""); $("control-status").hidden = true; }
   setUpBrowser(info.open_run);
   pollProgress();
