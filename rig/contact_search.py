@@ -60,6 +60,9 @@ def find_contact(
         low = rig.config.axes["z"].travel[0]
         z_floor = max(low, z_start - max_travel_mm)
         rig.tare(20)  # clear of the gel: this is the unloaded reading
+        # Measured anew: a shorter indenter touches below the old surface's depth floor. Until the
+        # search's first contact the descent runs at the in-contact speed (docs/safety.md).
+        rig.state.forget_surface()
         z_touch, _ = _descend_until_touch(m, z_floor, speed_mm_s, threshold_N)
         m.move({"z": min(z_touch + backoff_mm, z_start)}, speed_mm_s)
         slow = speed_mm_s / 10

@@ -60,12 +60,12 @@ RECORD_WAIT_S = 0.5  # how long a refused claim waits for the holder's record (w
 
 # -- where -----------------------------------------------------------------------------------
 def runtime_dir() -> Path:
-    """``$TACTILE_RUNTIME_DIR``, else ``$XDG_RUNTIME_DIR/tactile-rig``, else
-    ``/tmp/tactile-rig-UID``; made (0700) if missing. RigError naming the folder when it
-    cannot be made, or (the two defaults) is not a folder of this user's."""
+    """``/tmp/tactile-rig-UID``, made (0700) if missing: one folder per user whatever the process's
+    environment (a cron job, `sudo -u`, a systemd service and a terminal must all meet in it);
+    ``$TACTILE_RUNTIME_DIR`` replaces it (the tests' own folder). RigError naming the folder when
+    it cannot be made, or (the default) is not a folder of this user's."""
     chosen = os.environ.get("TACTILE_RUNTIME_DIR")
-    xdg = os.environ.get("XDG_RUNTIME_DIR")
-    folder = Path(chosen) if chosen else Path(xdg) / "tactile-rig" if xdg else Path(f"/tmp/tactile-rig-{os.getuid()}")
+    folder = Path(chosen) if chosen else Path(f"/tmp/tactile-rig-{os.getuid()}")
     try:
         folder.mkdir(mode=0o700, parents=True, exist_ok=True)
         st = os.lstat(folder)
@@ -93,8 +93,11 @@ def host_port(host: str, port: int | str, transport: str = "tcp") -> str:
     """``HOST:PORT`` (``HOST:PORT/udp``), the host's address written one way."""
     host = host.strip("[]").lower()
     host = "127.0.0.1" if host == "localhost" else host
-    with contextlib.suppress(ValueError):
+    try:
         host = str(ipaddress.ip_address(host))
+    except ValueError:  # a name: its address, so that a name and its address are one device
+        with contextlib.suppress(OSError, UnicodeError):
+            host = socket.gethostbyname(host)
     shown = f"[{host}]" if ":" in host else host
     return f"{shown}:{port}" + ("" if transport == "tcp" else f"/{transport}")
 

@@ -120,6 +120,11 @@ class RigState:
         self.save()
         return self.surface
 
+    def forget_surface(self) -> None:
+        """Forget the gel surface (find-contact measures it anew: a new indenter may touch lower)."""
+        self.surface = None
+        self.save()
+
     def save(self) -> None:
         if self.path is None:
             return
@@ -135,6 +140,11 @@ class RigState:
             f.flush()
             os.fsync(f.fileno())
         os.replace(tmp, self.path)
+        folder = os.open(self.path.parent, os.O_RDONLY)
+        try:  # the rename itself survives a power cut
+            os.fsync(folder)
+        finally:
+            os.close(folder)
 
 
 def age_text(t_unix: float, now_unix: float | None = None) -> str:
