@@ -9,7 +9,8 @@ simulated run verifies its 209 MB in about a second, where decoding every frame 
 with Blosc and several times longer with HTJ2K (docs/run-file.md, "Verified reads").
 
 A chunk that was never written is absent from the chunk index (a read would return fill zeros);
-it is reported as missing, never taken for a frame.
+it is reported as missing, never taken for a frame. A chunk index that cannot be read (its metadata
+fails HDF5's checksum) locates no chunk at all: ``ChunkIndexError``, one line for the dataset.
 """
 
 from __future__ import annotations
@@ -60,21 +61,31 @@ def has_trailing_checksum(d: h5py.Dataset) -> bool:
     return n > 0 and dcpl.get_filter(n - 1)[0] == FLETCHER32
 
 
+class ChunkIndexError(ValueError):
+    """A dataset's chunk index cannot be read (damaged metadata): no chunk of it can be located."""
+
+
 def chunk_index(d: h5py.Dataset) -> dict[int, tuple[int, int, int]]:
-    """{first row of the chunk: (byte offset, stored size, filter mask)} of every chunk on disk."""
+    """{first row of the chunk: (byte offset, stored size, filter mask)} of every chunk on disk;
+    ChunkIndexError when the index itself is unreadable."""
     found: dict[int, tuple[int, int, int]] = {}
 
     def add(info) -> None:
         found[int(info.chunk_offset[0])] = (int(info.byte_offset), int(info.size), int(info.filter_mask))
 
-    d.id.chunk_iter(add)
+    try:
+        d.id.chunk_iter(add)
+    except (OSError, RuntimeError, ValueError) as exc:
+        text = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise ChunkIndexError(f"chunk index unreadable ({text})") from None
     return found
 
 
 def bad_chunks(d: h5py.Dataset, rows: int) -> Iterator[tuple[int, int, str]]:
     """(first row, last row, problem) of each chunk covering rows 0..rows-1 that is missing or fails
     its checksum. Datasets without a trailing checksum are read through HDF5 instead (a missing
-    chunk is still found; corruption inside one cannot be, as in any file written before checksums)."""
+    chunk is still found; corruption inside one cannot be, as in any file written before checksums).
+    ChunkIndexError (before anything is yielded) when the chunk index cannot be read."""
     step = d.chunks[0]
     index = chunk_index(d)
     trailing = has_trailing_checksum(d)

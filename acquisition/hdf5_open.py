@@ -82,12 +82,28 @@ def check_complete(path: Path) -> str:
     return ""
 
 
-def open_swmr_read(path: Path) -> h5py.File:
-    """``h5py.File(path, "r", swmr=True)`` with a bounded number of metadata read attempts."""
+def _bounded_fapl(low: int) -> h5py.h5p.PropFAID:
     fapl = h5py.h5p.create(h5py.h5p.FILE_ACCESS)
-    fapl.set_libver_bounds(h5py.h5f.LIBVER_EARLIEST, h5py.h5f.LIBVER_LATEST)
+    fapl.set_libver_bounds(low, h5py.h5f.LIBVER_LATEST)
     setter = _set_read_attempts()
     if setter is not None:
         setter(fapl.id, READ_ATTEMPTS)
+    return fapl
+
+
+def open_swmr_read(path: Path) -> h5py.File:
+    """``h5py.File(path, "r", swmr=True)`` with a bounded number of metadata read attempts."""
+    fapl = _bounded_fapl(h5py.h5f.LIBVER_EARLIEST)
     fid = h5py.h5f.open(str(path).encode(), h5py.h5f.ACC_RDONLY | h5py.h5f.ACC_SWMR_READ, fapl=fapl)
     return h5py.File(fid)
+
+
+def open_append(path: Path) -> h5py.File:
+    """``h5py.File(path, "r+", libver="latest")`` with a bounded number of metadata read attempts.
+
+    The bound holds until the file enters SWMR write mode (``swmr_mode = True``): from then on HDF5
+    retries a metadata read whose checksum fails without end (a damaged chunk index kept
+    ``--resume`` asleep until kill -9), so a file is verified read-only before it is opened this way
+    (acquisition/run_resume.py)."""
+    fapl = _bounded_fapl(h5py.h5f.LIBVER_LATEST)
+    return h5py.File(h5py.h5f.open(str(path).encode(), h5py.h5f.ACC_RDWR, fapl=fapl))

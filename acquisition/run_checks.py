@@ -7,10 +7,13 @@ the wrench–frame skew beside them), so what validate refuses, every reader ref
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import h5py
 import numpy as np
 
 from acquisition import schema as S
+from acquisition.chunk_checksum import ChunkIndexError, chunk_index
 
 
 def first_line(exc: BaseException) -> str:
@@ -101,6 +104,10 @@ def read_rows(f: h5py.File, names: list[str], n: int) -> tuple[dict[str, np.ndar
         try:
             rows[name] = d[:n]
         except (OSError, RuntimeError) as exc:
+            index = _index_unreadable(d)
+            if index:  # no chunk can be located: one line, not one failed read per chunk
+                findings.append(f"{name}: {index}")
+                continue
             step = d.chunks[0] if d.chunks else n
             where = ""
             for lo in range(0, n, step):
@@ -113,10 +120,24 @@ def read_rows(f: h5py.File, names: list[str], n: int) -> tuple[dict[str, np.ndar
     return rows, findings
 
 
-def row_findings(rows: dict[str, np.ndarray], n: int, phases: int | None) -> list[str]:
+def _index_unreadable(d: h5py.Dataset) -> str:
+    """The problem with ``d``'s chunk index in words; "" when it reads (or ``d`` is not chunked)."""
+    if d.chunks is None:
+        return ""
+    try:
+        chunk_index(d)
+    except ChunkIndexError as exc:
+        return str(exc)
+    return ""
+
+
+def row_findings(
+    rows: dict[str, np.ndarray], n: int, phases: int | None, where: Callable[[int], str] = lambda i: f"frame {i}"
+) -> list[str]:
     """Values every reader relies on: finite numbers, time increasing, the capture grid contiguous
     from 0, phases within the file's list (``phases``: its length; None when the list is missing),
-    levels not negative. Each names the first frame where it fails."""
+    levels not negative. Each names the first frame where it fails (``where(i)`` words frame i: an
+    import names its CSV row)."""
     findings: list[str] = []
     if n == 0:
         return findings
@@ -125,26 +146,27 @@ def row_findings(rows: dict[str, np.ndarray], n: int, phases: int | None) -> lis
             bad = ~np.isfinite(values.reshape(n, -1)).all(axis=1)
             if bad.any():
                 at = np.nonzero(bad)[0]
-                findings.append(f"{name}: NaN/inf in {len(at)} rows (first at frame {at[0]})")
+                findings.append(f"{name}: NaN/inf in {len(at)} rows (first at {where(int(at[0]))})")
     for name in (S.T_FRAME, S.T_CAPTURE):
         if name in rows and n > 1 and np.any(np.diff(rows[name]) <= 0):
-            findings.append(f"{name}: not increasing at frame {int(np.argmax(np.diff(rows[name]) <= 0)) + 1}")
+            k = int(np.argmax(np.diff(rows[name]) <= 0)) + 1
+            findings.append(f"{name}: not increasing at {where(k)} ({rows[name][k]!r} after {rows[name][k - 1]!r})")
     if S.CAPTURE_INDEX in rows:
         idx = rows[S.CAPTURE_INDEX]
         if idx[0] != 0:
             findings.append(f"{S.CAPTURE_INDEX}: starts at {idx[0]}, expected 0")
         if n > 1 and np.any(np.diff(idx) != 1):
-            findings.append(f"{S.CAPTURE_INDEX}: gap or duplicate at frame {int(np.argmax(np.diff(idx) != 1)) + 1}")
+            findings.append(f"{S.CAPTURE_INDEX}: gap or duplicate at {where(int(np.argmax(np.diff(idx) != 1)) + 1)}")
     if S.PHASE_INDEX in rows and phases is not None:
         bad = (rows[S.PHASE_INDEX] < 0) | (rows[S.PHASE_INDEX] >= phases)
         if bad.any():
             first = int(np.argmax(bad))
             findings.append(
                 f"{S.PHASE_INDEX}: {int(bad.sum())} rows outside the {phases} phases "
-                f"(first at frame {first}: {int(rows[S.PHASE_INDEX][first])})"
+                f"(first at {where(first)}: {int(rows[S.PHASE_INDEX][first])})"
             )
     if S.LEVEL in rows and np.any(rows[S.LEVEL] < 0):
-        findings.append(f"{S.LEVEL}: negative at frame {int(np.argmax(rows[S.LEVEL] < 0))}")
+        findings.append(f"{S.LEVEL}: negative at {where(int(np.argmax(rows[S.LEVEL] < 0)))}")
     return findings
 
 
@@ -154,7 +176,8 @@ def read_stream(f: h5py.File, name: str) -> tuple[np.ndarray | None, list[str]]:
     try:
         rows = f[name][()]
     except (OSError, RuntimeError) as exc:
-        return None, [f"{name}: unreadable, checksum mismatch or missing bytes ({first_line(exc)})"]
+        problem = _index_unreadable(f[name]) or f"unreadable, checksum mismatch or missing bytes ({first_line(exc)})"
+        return None, [f"{name}: {problem}"]
     findings: list[str] = []
     if rows.ndim != 2 or rows.shape[0] == 0:
         return rows, findings

@@ -5,9 +5,11 @@ one sphere10mm run. ``compact`` copies such a file into ``RUN.h5.compacting-PID`
 it, every growing dataset created as the writer creates it (``run_storage.chunked``:
 compressed frames, Fletcher-32 everywhere), then reads the copy back and compares it
 with the original frame by frame, row by row, dataset by dataset and attribute by
-attribute, and only then renames it over the original. The original is verified whole first
-(acquisition/run_reader.py: schema, rows, every frame's checksum), compressed already or not, so
-``compact`` also tells a damaged file from a sound one. It holds the run's writer lock
+attribute, and only then renames it over the original. The original is opened through the verified
+reader (acquisition/run_reader.py: schema, attributes, rows and images); its frames are verified by
+the copy's own read of each (HDF5 checks every chunk's checksum), so a damaged frame stops the copy,
+which is removed. A file whose frames are compressed already is left as it is without reading a
+frame (``dataset validate`` checks them). It holds the run's writer lock
 throughout, so a run being written (or resumed) is refused and cannot start meanwhile.
 Any failure removes the copy and leaves the original as it was.
 """
@@ -22,6 +24,7 @@ import h5py
 import numpy as np
 
 from acquisition import schema as S
+from acquisition.hdf5_open import check_complete
 from acquisition.run_reader import RunReader
 from acquisition.run_storage import (
     ROW_BLOCK,
@@ -33,6 +36,7 @@ from acquisition.run_storage import (
     temp_path,
 )
 from acquisition.writer_lock import RunFileError, WriterLock
+from rig.interruption import SignalsAsExceptions
 
 ROW_FIELDS = {f.path: ROW_BLOCK for f in S.PER_FRAME_FIELDS} | {f.path: STREAM_BLOCK for f in S.STREAM_FIELDS}
 
@@ -55,8 +59,11 @@ def _line(exc: BaseException) -> str:
     return str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
 
 
-def _copy(src: h5py.File, dst: h5py.File) -> None:
-    """Everything of ``src`` into ``dst``; growing datasets re-created with the writer's filters."""
+def _copy(src: h5py.File, dst: h5py.File, frame=None) -> None:
+    """Everything of ``src`` into ``dst``; growing datasets re-created with the writer's filters.
+    ``frame(i)`` reads frame i (default: ``src``'s frames[i]; ``compact`` passes the verified
+    reader's, which names a missing or damaged frame)."""
+    frame = frame or (lambda i: src[S.FRAMES][i])
     dst.attrs.update(dict(src.attrs))
 
     def visit(name: str, obj) -> None:
@@ -73,7 +80,7 @@ def _copy(src: h5py.File, dst: h5py.File) -> None:
                 **chunked((1, *shape), codec=S.frame_codec(tuple(shape))),
             )
             for i in range(n):  # one frame at a time: a run does not fit in memory
-                d[i] = obj[i]
+                d[i] = frame(i)
         elif name in ROW_FIELDS and obj.ndim >= 1:
             d = dst.create_dataset(
                 name,
@@ -128,21 +135,30 @@ def compact(path: str | Path) -> Compacted:
     anything. RunLocked while a writer holds the run; RunFileError for a damaged or
     malformed file, or a copy that does not verify (the original is then untouched)."""
     path = Path(path)
+    with SignalsAsExceptions():  # SIGTERM, SIGHUP: the copy removed and the lock released, as for Ctrl-C
+        return _compact(path)
+
+
+def _compact(path: Path) -> Compacted:
     lock = WriterLock.acquire(path)
     try:
         remove_stale_temps(path)
         before = path.stat().st_size if path.exists() else 0
-        with RunReader.open(path) as run:  # verified whole first: damage is refused, never copied
-            run.verify_frames()
+        # the reader skips its length check while a writer holds the lock (it may be growing the
+        # file): this process holds it now, and nobody else writes, so the check is made here
+        problem = check_complete(path) if path.is_file() else ""
+        if problem:
+            raise RunFileError(f"{path}: {problem}; not compacted")
+        with RunReader.open(path) as run:  # rows, attributes, images verified; frames as the copy reads them
             src = run.f
             n = run.n
-            if frames_compressed(src):
+            if frames_compressed(src):  # nothing to do: not read (dataset validate checks every frame)
                 return Compacted(path, n, before, before, False)
             tmp = temp_path(path, ".compacting-")
             try:
                 try:
                     with h5py.File(tmp, "w", libver="latest") as dst:
-                        _copy(src, dst)
+                        _copy(src, dst, run.frame)
                     fsync_path(tmp)
                     with h5py.File(tmp, "r") as copy:
                         problem = _verify(src, copy)

@@ -7,6 +7,8 @@ Each part has a module of its own:
 * acquisition/run_reader.py: ``RunReader``, the one read path every command uses (schema, rows
   and checksums verified as it reads), and ``open_for_reading``, the file-level open under it;
 * acquisition/run_identity.py: a run's identity as ``dataset split`` records it;
+* acquisition/attr_checksum.py: the checksum of the root attributes; acquisition/crash_tail.py:
+  what ``--resume`` keeps of a run whose writer crashed;
 * acquisition/run_storage.py: creation filters, temp names, ``recover``; ``dataset compact``:
   acquisition/run_compact.py.
 

@@ -10,7 +10,9 @@ shape, filters and attributes; the data of the small unchunked datasets (object 
 frame, status); and for every chunk of the growing datasets its position, address, stored size and
 its four stored checksum bytes (Fletcher-32, acquisition/chunk_checksum.py). A byte changed in a
 chunk changes either nothing HDF5 reads (then the next read of it fails its checksum) or, once
-rewritten, its checksum bytes: the hash. Cost: ~10 ms for a 1,600-frame run.
+rewritten, its checksum bytes: the hash. Cost: ~10 ms for a 1,600-frame run. So a file whose
+modification time changed is verified whole before its hash is compared (``changed_since``): the
+hash and every chunk's checksum together vouch for every byte.
 """
 
 from __future__ import annotations
@@ -24,7 +26,7 @@ import numpy as np
 
 from acquisition.chunk_checksum import chunk_index, has_trailing_checksum
 from acquisition.run_checks import first_line
-from acquisition.run_reader import open_for_reading
+from acquisition.run_reader import RunReader, open_for_reading
 from acquisition.writer_lock import RunFileError
 
 KEYS = ("size", "mtime_ns", "sha256")
@@ -79,16 +81,28 @@ def identity_of(path: Path, f: h5py.File) -> dict:
     return {"size": stat.st_size, "mtime_ns": stat.st_mtime_ns, "sha256": digest}
 
 
-def identity(path: str | Path) -> dict:
-    """{size, mtime_ns, sha256} of a run file; RunFileError when it cannot be read."""
+def identity(path: str | Path, *, whole: bool = False) -> dict:
+    """{size, mtime_ns, sha256} of a run file; RunFileError when it cannot be read. ``whole``: the
+    file verified whole first (the verified reader, every frame's checksum): RunFileError naming the
+    damage, so that a matching hash then vouches for every byte of it (module docstring)."""
     path = Path(path)
-    with open_for_reading(path) as f:
-        return identity_of(path, f)
+    if not whole:
+        with open_for_reading(path) as f:
+            return identity_of(path, f)
+    with RunReader.open(path) as run:
+        run.verify_frames()
+        return identity_of(path, run.f)
 
 
 def changed_since(path: str | Path, recorded: dict) -> str:
     """What differs between the file now and its ``recorded`` identity, in words ("" when nothing).
-    The cheap checks first: a file of another size or time is not opened."""
+
+    A file of another size is refused without being opened. A file of the same size and time is
+    compared by its hash. Its modification time alone decides nothing: a copy (``cp`` without ``-p``,
+    a backup restored) or ``touch`` changes it and nothing else. But a byte changed inside a chunk
+    changes the time and not the hash (only HDF5's next read of that chunk fails its checksum), so a
+    file written since is verified whole (every row, image and frame against its checksum) before
+    its hash is compared: accepted only when both hold."""
     path = Path(path)
     try:
         stat = path.stat()
@@ -96,12 +110,11 @@ def changed_since(path: str | Path, recorded: dict) -> str:
         return f"cannot be read now ({exc.strerror})"
     if stat.st_size != recorded["size"]:
         return f"its size is {stat.st_size:,} bytes, {recorded['size']:,} then"
-    if stat.st_mtime_ns != recorded["mtime_ns"]:
-        return "it was written since (its modification time differs)"
     try:
-        now = identity(path)["sha256"]
+        now = identity(path, whole=stat.st_mtime_ns != recorded["mtime_ns"])["sha256"]
     except RunFileError as exc:
         return str(exc).removeprefix(f"{path}: ")
     if now != recorded["sha256"]:
-        return "its header or chunk index differs (same size and time)"
+        when = "same size and time" if stat.st_mtime_ns == recorded["mtime_ns"] else "same size, written since"
+        return f"its header or chunk index differs ({when})"
     return ""

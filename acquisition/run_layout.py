@@ -11,6 +11,7 @@ import h5py
 import numpy as np
 
 from acquisition import schema as S
+from common.sensors import SENSOR_KINDS
 
 NUMBER_KINDS = "iuf"
 
@@ -88,7 +89,14 @@ def attr_problems(f: h5py.File) -> dict[str, str]:
             problems[name] = f"is {_describe(value)}, expected 4 numbers"
         elif kind == "str[]" and not (value.ndim == 1 and value.dtype.kind in "OSU"):
             problems[name] = f"is {_describe(value)}, expected a list of text"
+        elif name == S.ATTR_SENSOR_KIND and _text(value) not in SENSOR_KINDS:
+            problems[name] = f"is {_describe(value)}, expected one of {', '.join(SENSOR_KINDS)}"
     return problems
+
+
+def _text(value: np.ndarray) -> str:
+    item = value.item()
+    return item.decode("utf-8", "replace") if isinstance(item, bytes) else str(item)
 
 
 def decode_phases(f: h5py.File) -> tuple[str, ...]:

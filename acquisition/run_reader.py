@@ -3,22 +3,24 @@
 ``RunReader.open(path)`` refuses, in one line naming the file, the dataset and the frame, any file
 that ``dataset validate`` would refuse for its form or content (acquisition/run_checks.py):
 
-* the file itself: missing, cut short (its superblock records its length), not HDF5, a codec this
-  installation cannot decode (``open_for_reading``, within a second);
-* the schema: every dataset and root attribute of the table with its dtype and shape, checksums on
-  every growing dataset (or on none: a file written before them), a status of the schema's, text
-  that is UTF-8;
+* the file itself: missing, not a regular file (a named pipe would block for ever), cut short (its
+  superblock records its length), not HDF5, a codec this installation cannot decode
+  (``open_for_reading``, within a second);
+* the schema: every dataset and root attribute of the table with its dtype and shape, a known
+  sensor kind, the root attributes against their checksum (acquisition/attr_checksum.py; a file
+  written before it: a note), checksums on every growing dataset (or on none: a file written before
+  them), a status of the schema's, text that is UTF-8;
 * the rows, read in full (their chunks' checksums checked by HDF5): one per frame (exactly one once
   the run is closed), finite numbers, time increasing, the capture grid contiguous from 0, phases
   within the file's own list, levels not negative; the full-rate stream finite and never going
   back in time; the object image and the reference frame readable.
 
 Frames are verified as they are read (``frame``: HDF5 checks the chunk's checksum; a chunk never
-written is refused, not read as zeros), or all at once without decoding (``verify_frames``:
-acquisition/chunk_checksum.py), as ``dataset split``, ``compact``, ``merge``, ``export`` and
-``--resume`` do. What the reader leaves to ``dataset validate`` are its judgements: black, constant
-or saturated frames, wrench–frame skew beyond a threshold, and whether a run completed (``split``
-asks that itself).
+written is refused, not read as zeros: what ``merge``, ``export`` and ``compact`` rely on, reading
+each frame once), or all at once without decoding (``verify_frames``: acquisition/chunk_checksum.py),
+as ``dataset split`` and a split's identity check of a file written since do. What the reader
+leaves to ``dataset validate`` are its judgements: black, constant or saturated frames, wrench–frame
+skew beyond a threshold, and whether a run completed (``split`` asks that itself).
 """
 
 from __future__ import annotations
@@ -28,8 +30,9 @@ from pathlib import Path
 import h5py
 import numpy as np
 
+from acquisition import attr_checksum
 from acquisition import schema as S
-from acquisition.chunk_checksum import bad_chunks
+from acquisition.chunk_checksum import ChunkIndexError, bad_chunks
 from acquisition.hdf5_open import check_complete, open_swmr_read
 from acquisition.run_checks import (
     checksum_findings,
@@ -59,6 +62,8 @@ def open_for_reading(path: str | Path) -> h5py.File:
         raise RunFileError(f"{path}: no such file")
     if path.is_dir():
         raise RunFileError(f"{path}: is a folder, expected a run file (.h5)")
+    if not path.is_file():  # a named pipe would block the first read for ever, a device read without end
+        raise RunFileError(f"{path}: not a regular file (a named pipe, device or socket), expected a run file (.h5)")
     try:
         problem = check_complete(path)
     except OSError as exc:
@@ -126,8 +131,12 @@ class RunReader:
         problems += [f"malformed run file: attribute {name}: {p}" for name, p in attr_problems(f).items()]
         if problems:
             return problems
+        damaged, note = attr_checksum.problem(f)
+        if damaged:
+            return [damaged]
         sound = {fl.path for fl in S.FIELDS if fl.path in f}
         problems, self.notes = checksum_findings(f, sound)
+        self.notes += [note] if note else []
         self.status, self.reason, found = status_findings(f, sound)
         problems += found
         self.n = f[S.FRAMES].shape[0]
@@ -206,10 +215,13 @@ class RunReader:
         upto = self.n if upto is None else upto
         if d.chunks is None:  # contiguous frames (never written so): read them through HDF5
             return self._contiguous_problems(upto) if upto else []
-        return [
-            f"{S.FRAMES}[{lo}]: {problem}" if lo == hi else f"{S.FRAMES}[{lo}:{hi + 1}]: {problem}"
-            for lo, hi, problem in bad_chunks(d, upto)
-        ]
+        try:
+            return [
+                f"{S.FRAMES}[{lo}]: {problem}" if lo == hi else f"{S.FRAMES}[{lo}:{hi + 1}]: {problem}"
+                for lo, hi, problem in bad_chunks(d, upto)
+            ]
+        except ChunkIndexError as exc:  # no frame can be located: one line for the dataset
+            return [f"{S.FRAMES}: {exc}"]
 
     def _contiguous_problems(self, upto: int) -> list[str]:
         try:
@@ -225,7 +237,7 @@ class RunReader:
             why = (
                 "the run is still running or its writer crashed: `rig run-protocol --resume` keeps the frames "
                 "that reached the disk"
-                if self.status == "running"
+                if self.status == "running" and problems[0].startswith(f"{S.FRAMES}[")
                 else "the file is damaged"
             )
             raise refusal(self.path, [f"{problems[0]}; {why}", *problems[1:]])

@@ -31,11 +31,13 @@ import h5py
 import numpy as np
 
 from acquisition import schema as S
+from acquisition.attr_checksum import seal
 from acquisition.run_checks import first_line as _first_line
 from acquisition.run_layout import decode_phases
 from acquisition.run_storage import ROW_BLOCK, STREAM_BLOCK, chunked, fsync_path, remove_stale_temps, temp_path
 from acquisition.write_failure import SPACE_MARGIN_BYTES, describe_failure, space_shortfall
 from acquisition.writer_lock import RunFileError, WriterLock
+from common.sensors import SENSOR_KINDS
 from rig import __version__
 
 log = logging.getLogger("acquisition")
@@ -64,7 +66,8 @@ PER_FRAME = tuple((f.path, f.shape, f.dtype, f.units) for f in S.PER_FRAME_FIELD
 
 
 def write_attributes(f: h5py.File, header: RunHeader) -> None:
-    """The root attributes of ``header`` (before SWMR mode, which forbids adding any)."""
+    """The root attributes of ``header`` (before SWMR mode, which forbids adding any), sealed with
+    their checksum (acquisition/attr_checksum.py)."""
     a = f.attrs
     a[S.ATTR_SCHEMA] = S.SCHEMA_VERSION
     a[S.ATTR_SOFTWARE] = __version__
@@ -84,6 +87,7 @@ def write_attributes(f: h5py.File, header: RunHeader) -> None:
     if header.object_file_toml:
         a[S.ATTR_OBJECT_FILE] = header.object_file_toml
         a[S.ATTR_OBJECT_PHOTO_SHA256] = header.object_photo_sha256
+    seal(f)
 
 
 def _write_header(
@@ -172,6 +176,9 @@ class RunWriter:
         codec where the frames suit it, see ``schema.frame_codec``). ``compress=False``
         writes frames uncompressed, as files before compression were."""
         path = Path(path)
+        if header.sensor_kind not in SENSOR_KINDS:  # before anything is taken or written
+            kinds = ", ".join(SENSOR_KINDS)
+            raise RunFileError(f"{path}: sensor kind {header.sensor_kind!r} is not one of {kinds} (common/sensors.py)")
         lock = lock or WriterLock.acquire(path)
         try:
             if path.exists():

@@ -50,6 +50,7 @@ ATTR_PHASES = "phases"
 ATTR_SENSOR_PROFILE = "sensor_profile"  # simulated runs: the sensor profile's name, sha256 and file (TOML text)
 ATTR_OBJECT_FILE = "object_file_toml"  # a user object file's text (docs/protocols.md, "Your own objects")
 ATTR_OBJECT_PHOTO_SHA256 = "object_photo_sha256"  # sha256 of that object's photo file: the condition's source
+ATTR_ATTRS_SHA256 = "attrs_sha256"  # sha256 of every other root attribute (acquisition/attr_checksum.py)
 
 SCHEMA_VERSION = 1
 STATUS_LEN = 16
@@ -152,7 +153,13 @@ ATTRS = (
 )
 # Root attributes a file may lack (written only by some runs, or added after older files);
 # readers treat a missing one as "not recorded" (model/baseline.py: the default profile).
-OPTIONAL_ATTRS = ((ATTR_SENSOR_PROFILE, "str"), (ATTR_OBJECT_FILE, "str"), (ATTR_OBJECT_PHOTO_SHA256, "str"))
+# ATTR_ATTRS_SHA256: files written before it lack it (readable as before; validate notes it).
+OPTIONAL_ATTRS = (
+    (ATTR_SENSOR_PROFILE, "str"),
+    (ATTR_OBJECT_FILE, "str"),
+    (ATTR_OBJECT_PHOTO_SHA256, "str"),
+    (ATTR_ATTRS_SHA256, "str"),
+)
 
 # The frames' lossless codecs, chosen by bench/storage_bench.py (docs/benchmarks.md):
 # - IMAGE_CODEC, HTJ2K (JPEG 2000's high-throughput coder, reversible): each pixel

@@ -25,19 +25,31 @@ Paths = Annotated[list[Path], typer.Argument(help="Run files (HDF5) written by `
 
 
 def friendly(fn):
+    """Every failure is one red line and exit 1, never a traceback: the expected ones in their own
+    words, anything else naming its type (cli/one_line.py)."""
+
     @functools.wraps(fn)
     def wrapper(*args, **kwargs):
+        from cli.one_line import passes_through, unexpected
         from common.errors import ToolError
 
         try:
             return fn(*args, **kwargs)
         except (ToolError, FileNotFoundError, ValueError, KeyError) as exc:
-            typer.secho(f"error: {exc}", fg=typer.colors.RED, err=True)
-            raise typer.Exit(1) from None
+            message = f"{exc}"
         except OSError as exc:  # a read-only or full disk, a folder we may not write: named, never a traceback
             where = f"{exc.filename}: " if exc.filename else ""
-            typer.secho(f"error: {where}{exc.strerror or exc}", fg=typer.colors.RED, err=True)
-            raise typer.Exit(1) from None
+            message = f"{where}{exc.strerror or exc}"
+        except Exception as exc:
+            if passes_through(exc):
+                raise
+            message = unexpected(exc, "dataset")
+        except KeyboardInterrupt as exc:  # Ctrl-C, or SIGTERM/SIGHUP while a file is written (whole_run)
+            name = getattr(exc, "signal_name", "SIGINT")
+            typer.secho(f"interrupted ({name}): what was being written was removed", fg=typer.colors.YELLOW, err=True)
+            raise typer.Exit(getattr(exc, "exit_code", 130)) from None
+        typer.secho(f"error: {message}", fg=typer.colors.RED, err=True)
+        raise typer.Exit(1)
 
     return wrapper
 

@@ -1,4 +1,4 @@
-"""The import folder's format and its checks: run.json key by key, frames.csv row by row.
+"""The import folder's format and its checks: frames.csv row by row (run.json: dataset/import_meta.py).
 
 Everything here runs before a run file is created, and the run file itself is written whole or
 not at all (acquisition/whole_run.py), so a refused import writes nothing. Each error names the
@@ -12,17 +12,17 @@ and the import says which.
 from __future__ import annotations
 
 import csv
-import json
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from acquisition import schema as S
+from acquisition.run_checks import row_findings
 from acquisition.run_file import RunFileError
 from common.errors import ConfigError
-from common.sensors import SENSOR_KINDS
 from common.table import finite_number
+from dataset.import_meta import regular_file
 
 FIELDS = {f.path: f for f in S.PER_FRAME_FIELDS}
 WRENCH_COLS = S.columns_of(FIELDS[S.WRENCH])
@@ -42,10 +42,7 @@ def csv_fields() -> list[S.Field]:
 
 
 # Bounds on imported numbers, each a reason away from any real tactile data: a NaN or a
-# typo caught here never reaches a training set.
-META_KEYS = ("mm_per_px", "object", "sensor", "protocol", "capture_hz", "status", "phases", "pose_convention")
-MM_PER_PX = (1e-4, 10.0)  # a GelSight Mini is 0.0634 mm/px at 320x240; beyond these no camera sees a gel
-CAPTURE_HZ = (0.01, 1000.0)  # one frame a 100 s up to a fast camera's frame rate
+# typo caught here never reaches a training set (run.json's: dataset/import_meta.py).
 POSE_LIMIT = 1e4  # mm or deg: 10 m of travel or ~28 turns; no lab stage goes further (as the rig config)
 FORCE_N = 1e4  # |F|: 10 kN is far past crushing any tactile gel
 TORQUE_NMM = 1e6  # |M|: 1 kN·m, likewise
@@ -64,60 +61,16 @@ BOUNDS: dict[str, Any] = {
 }
 
 
-def read_meta(folder: Path) -> dict:
-    """run.json checked key by key; ConfigError names the file, the key and the value."""
-    path = folder / "run.json"
-    if not path.exists():
-        return {}
-    try:
-        meta = json.loads(path.read_text(encoding="utf-8-sig"))
-    except (ValueError, UnicodeDecodeError) as exc:
-        raise ConfigError(str(path), "-", f"not valid JSON: {exc}") from None
-    if not isinstance(meta, dict):
-        raise ConfigError(str(path), "-", f"must be a JSON object of {', '.join(META_KEYS)}, got {type(meta).__name__}")
-    for key, value in meta.items():
-        if key not in META_KEYS:
-            raise ConfigError(str(path), key, f"unknown key; expected one of {', '.join(META_KEYS)}")
-        if key == "mm_per_px" and value is not None:
-            finite_number(str(path), key, value, low=MM_PER_PX[0], high=MM_PER_PX[1])
-        elif key == "capture_hz":
-            finite_number(str(path), key, value, low=CAPTURE_HZ[0], high=CAPTURE_HZ[1])
-        elif key == "phases":
-            if (
-                not isinstance(value, list)
-                or not value
-                or not all(isinstance(v, str) and v for v in value)
-                or len(set(value)) != len(value)
-                or len(value) > 127
-            ):
-                raise ConfigError(str(path), key, f"must be a list of distinct phase names, got {value!r}")
-        elif key not in ("mm_per_px", "pose_convention") and not isinstance(value, str):
-            raise ConfigError(str(path), key, f"must be a string, got {value!r}")
-    return meta
-
-
-def sensor_kind(folder: Path, meta: dict, option: str | None) -> str:
-    """The sensor kind: ``--sensor``, else run.json's; one of SENSOR_KINDS, or a ConfigError that
-    lists them (evaluate and the simulator need it; an unknown kind used to surface only there)."""
-    if option is not None:
-        if option not in SENSOR_KINDS:
-            raise ConfigError(str(folder), "--sensor", f"must be one of {', '.join(SENSOR_KINDS)}, got {option!r}")
-        return option
-    kind = meta.get("sensor")
-    if kind is None:
-        raise ConfigError(
-            str(folder / "run.json"),
-            "sensor",
-            f'missing: pass --sensor {"|".join(SENSOR_KINDS)} or put "sensor" in run.json '
-            "(evaluate's physics row and the simulator need the kind)",
-        )
-    if kind not in SENSOR_KINDS:
-        raise ConfigError(
-            str(folder / "run.json"),
-            "sensor",
-            f"must be one of {', '.join(SENSOR_KINDS)}, got {kind!r}; pass --sensor to set it",
-        )
-    return str(kind)
+def row_order(table: Path, checked: list[tuple[Path, dict]], phases: tuple[str, ...]) -> None:
+    """The rows as every reader of the run file will check them (acquisition/run_checks.py's
+    ``row_findings``: time increasing, the capture grid, phases, levels, finite numbers), before
+    anything is written; RunFileError naming frames.csv, the column and the row."""
+    values = [v for _, v in checked]
+    rows = {name: np.stack([np.asarray(v[name]) for v in values]) for name in values[0]}
+    findings = row_findings(rows, len(values), len(phases), where=lambda i: f"row {i + 2}")
+    if findings:
+        more = f" (and {len(findings) - 1} more)" if len(findings) > 1 else ""
+        raise RunFileError(f"{table}: {findings[0]}{more}; every reader of the run file would refuse it")
 
 
 def frame_path(folder: Path, table: Path, i: int, name: str | None) -> Path:
@@ -253,6 +206,7 @@ def _strict_rows(path: Path, known: tuple[str, ...], ignore: tuple[str, ...]) ->
     """(header, rows) of a CSV table (UTF-8, with or without a byte-order mark), strictly: no column
     outside ``known`` unless in ``ignore`` (then dropped), no column twice, every row with exactly a
     cell per column."""
+    regular_file(path)
     try:
         with open(path, newline="", encoding="utf-8-sig") as fh:
             reader = csv.reader(fh)

@@ -46,6 +46,8 @@ class Squaring:
 
 
 def read_image(path: Path, what: str) -> np.ndarray:
+    if path.exists() and not path.is_file():  # a named pipe would block the read for ever
+        raise RunFileError(f"{path}: {what} is not a regular file (expected a PNG or JPEG image)")
     img = cv2.imread(str(path), cv2.IMREAD_COLOR)
     if img is None:
         raise RunFileError(f"{path}: cannot read {what} (expected a PNG or JPEG image)")

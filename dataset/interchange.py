@@ -15,9 +15,11 @@ table of what import accepts):
     object.png      the object's contact face centred at pose 0, spanning the frames' field of view
     reference.png   optional: a no-contact frame (default: the first frame)
     wrench_stream.csv  optional: the gauge's full-rate wrench, t_s then the six components
-    run.json        mm_per_px, object, sensor, protocol, capture_hz, status, phases and
-                    pose_convention (required: which way x, y, z and theta point, and the origin;
-                    dataset/pose_convention.py); sensor and mm_per_px may come from options instead
+    run.json        mm_per_px, object, object_geometry, sensor, protocol, capture_hz, status and reason,
+                    frames_planned, sensor_profile (the recorded profile's text, "": none), phases
+                    and pose_convention (required: which way x, y, z and theta point, and the
+                    origin; dataset/pose_convention.py); sensor and mm_per_px may come from options
+                    instead (dataset/import_meta.py checks each key)
 
 Poses: +x right, +y up in the frame, z negative into the gel, theta counter-clockwise seen by
 the camera, in mm and deg from the contact point (dataset/pose_convention.py).
@@ -27,8 +29,6 @@ from __future__ import annotations
 
 import csv
 import json
-import os
-import shutil
 from pathlib import Path
 
 import cv2
@@ -37,22 +37,28 @@ import numpy as np
 from acquisition import schema as S
 from acquisition.run_reader import RunReader
 from acquisition.run_writer import RunHeader
-from acquisition.whole_run import check_new_output, whole_run
+from acquisition.whole_run import check_new_output, whole_folder, whole_run
 from acquisition.writer_lock import RunFileError
 from common.table import finite_number
-from dataset.import_checks import (  # noqa: F401 (MM_PER_PX: the CLI's --mm-per-px range)
-    MM_PER_PX,
+from dataset.import_checks import (
     STREAM_COLS,
     STREAM_CSV,
     absent_columns,
     csv_fields,
-    read_meta,
     read_rows,
     read_stream,
     read_table,
-    sensor_kind,
+    row_order,
 )
 from dataset.import_images import Squaring, check_square, read_image, square, squared_mm_per_px
+from dataset.import_meta import (  # noqa: F401 (MM_PER_PX: the CLI's --mm-per-px range)
+    MM_PER_PX,
+    imported_profile,
+    imported_status,
+    planned_frames,
+    read_meta,
+    sensor_kind,
+)
 from dataset.merge import merge_runs  # noqa: F401 (merge and preview, long exported from here)
 from dataset.pose_convention import POSE_CONVENTION, flipped_axes, pose_signs
 from dataset.preview import preview  # noqa: F401
@@ -66,25 +72,16 @@ def _cell(value, field: S.Field) -> str:
 def export_run(path: str | Path, out: str | Path) -> int:
     """frames/*.png, frames.csv (every per-frame field of the table the file has), object.png,
     reference.png, wrench_stream.csv (when recorded) and run.json in a new folder ``out``; the frame
-    count. The run is verified whole first (acquisition/run_reader.py) and the folder written under
-    a temporary name beside ``out``, renamed only when complete: a refused export leaves nothing."""
+    count. The run is read through the verified reader (acquisition/run_reader.py: rows, attributes
+    and images at open, each frame's checksum as it is read) and the folder written under a
+    temporary name beside ``out``, renamed only when complete: a refused export leaves nothing."""
     out = Path(out)
     if out.exists() and not (out.is_dir() and not any(out.iterdir())):
         raise RunFileError(f"--out {out}: exists; export writes a new folder: choose another --out")
     if not out.parent.is_dir():
         raise RunFileError(f"--out {out}: the folder {out.parent} does not exist; create it first")
-    with RunReader.open(path) as run:
-        run.verify_frames()
-        tmp = out.with_name(f".{out.name}.exporting-{os.getpid()}")
-        try:
-            _export(run, tmp)
-            os.replace(tmp, out)
-        except OSError as exc:
-            raise RunFileError(
-                f"--out {out}: cannot write the export ({exc.strerror or exc}); nothing was left there"
-            ) from None
-        finally:
-            shutil.rmtree(tmp, ignore_errors=True)
+    with RunReader.open(path) as run, whole_folder(out, "export") as tmp:
+        _export(run, tmp)
         return run.n
 
 
@@ -122,10 +119,14 @@ def _export(run: RunReader, folder: Path) -> None:
     meta = {
         "mm_per_px": scale if np.isfinite(scale) else None,  # null: uncalibrated (JSON has no NaN)
         "object": run.text(S.ATTR_OBJECT),
+        "object_geometry": run.text(S.ATTR_OBJECT_GEOMETRY),
         "sensor": run.text(S.ATTR_SENSOR_KIND),
         "protocol": run.text(S.ATTR_PROTOCOL_NAME),
         "capture_hz": run.number(S.ATTR_CAPTURE_HZ),
         "status": run.status,
+        "reason": run.reason,
+        "frames_planned": int(run.number(S.ATTR_FRAMES_PLANNED)),
+        "sensor_profile": run.text(S.ATTR_SENSOR_PROFILE),  # the profile's record ("": the run has none)
         "phases": list(run.phases),
         "pose_convention": POSE_CONVENTION,  # what every run file holds (dataset/pose_convention.py)
     }
@@ -173,6 +174,10 @@ def import_run(
     # brings its own list, in its own order.
     phases = tuple(meta.get("phases") or PHASES)
     checked = read_rows(folder, table, rows, capture_hz, phases, signs)
+    row_order(table, checked, phases)  # what every reader of the run file checks: refused now, not after
+    status, reason = imported_status(folder, meta)
+    planned = planned_frames(folder, meta, len(rows))
+    profile = imported_profile(folder, meta, sensor_profile)
     stream = read_stream(folder)
     first_raw = read_image(checked[0][0], "the first frame")
     check_square(checked[0][0], first_raw, "the first frame", squaring)
@@ -207,14 +212,16 @@ def import_run(
             + (f"\ncolumns ignored: {', '.join(ignore_columns)}" if ignore_columns else "")
         ),
         object_name=object_name or meta.get("object", "imported"),
-        object_geometry="imported",
+        object_geometry=meta.get("object_geometry", "imported")
+        if object_name in (None, meta.get("object"))
+        else "imported",
         sensor_kind=kind,
         mm_per_px=squared_mm_per_px(float(scale), first_raw.shape, squaring),
         capture_hz=capture_hz,
-        frames_planned=len(rows),
+        frames_planned=planned,
         contact_origin=(0.0, 0.0, 0.0, 0.0),
         phases=phases,
-        sensor_profile=sensor_profile,
+        sensor_profile=profile,
     )
     with whole_run(out, header, first.shape, obj, reference, what="dataset import") as writer:
         for i, (frame_path, values) in enumerate(checked):
@@ -225,5 +232,5 @@ def import_run(
                     f"{first_raw.shape[1]}x{first_raw.shape[0]}"
                 )
             writer.append(first if i == 0 else square(img, squaring), stream=stream if i == 0 else None, **values)
-        writer.set_status("complete", "")
+        writer.set_status(status, reason)
     return len(rows)

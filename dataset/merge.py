@@ -1,12 +1,15 @@
 """Merging runs of one object, sensor and scale into one run file that validates.
 
-* Every source is read through the verified reader and checked whole first (schema, rows, every
-  frame's checksum, acquisition/run_reader.py): a damaged source, or a value outside the schema
-  (a phase index past the file's list), is refused naming the file and the frame, never carried
-  into the merged file nor rewritten into something else.
-* Like with like: one object (and the same object file and photo, and object image), sensor kind,
-  sensor profile, frame size, mm per pixel and capture rate; anything else is refused naming the
-  runs and their values.
+* Every source is read through the verified reader (acquisition/run_reader.py: schema, attributes,
+  rows and images at open, each frame's checksum as it is copied): a damaged source, or a value
+  outside the schema (a phase index past the file's list), is refused naming the file and the
+  frame, never carried into the merged file nor rewritten into something else; the half-written
+  merged file is removed (all or nothing, below). Each frame is read once, its checksum checked by
+  that read: no separate verification pass before.
+* Like with like: one object (and the same object geometry, object file and photo, and object
+  image), sensor kind, sensor profile, frame size, mm per pixel and capture rate, and reference
+  frames alike up to sensor noise (the merged file keeps the first source's: REFERENCE_TOLERANCE);
+  anything else is refused naming the runs and their values.
 * Every per-frame field of the run-file table is carried (a source written before an optional
   field existed contributes that field's fill value), and the full-rate wrench stream too.
 * Time keeps increasing across sources: each source after the first is shifted by one offset for
@@ -36,9 +39,19 @@ from acquisition.run_writer import RunHeader
 from acquisition.whole_run import check_new_output, whole_run
 from acquisition.writer_lock import RunFileError
 
+# The merged file keeps the first source's reference frame (the no-contact background of the physics
+# row and of `preview --condition`), so every other source's must be the same up to sensor noise:
+# blurred by a Gaussian of REFERENCE_BLUR_PX, two frames of one sensor with independent per-pixel
+# noise of 1, 3 and 5 grey levels differ by at most 0.9, 3.0 and 5.2 levels (simulated runs of one
+# profile: 0, their noise is seeded), a lighting drift of 3 % by 4.6; a press of 20 levels in the
+# reference, or the light of another sensor or gel, by far more than REFERENCE_TOLERANCE.
+REFERENCE_BLUR_PX = 2.0
+REFERENCE_TOLERANCE = 8.0  # grey levels, after the blur
+
 # root attributes (and the object image) every source must share, with what a difference would break
 SHARED = (
     (S.ATTR_OBJECT, "the object"),
+    (S.ATTR_OBJECT_GEOMETRY, "the object's geometry (the indenter's shape and size)"),
     (S.ATTR_SENSOR_KIND, "the sensor kind"),
     (S.ATTR_SENSOR_PROFILE, "the sensor profile (the physics render of each frame)"),
     (S.ATTR_OBJECT_FILE, "the object file"),
@@ -48,7 +61,9 @@ SHARED = (
 )
 
 
-def _like_with_like(paths: Sequence[str | Path], sources: list[RunReader]) -> None:
+def _like_with_like(paths: Sequence[str | Path], sources: list[RunReader]) -> list[float]:
+    """RunFileError naming the runs and values unless the sources are alike; else each source's
+    reference frame's difference from the first's (grey levels, ``reference_difference``)."""
     shapes = [r.frame_shape for r in sources]
     if len(set(shapes)) > 1:
         detail = ", ".join(f"{p}: {s[1]}x{s[0]}" for p, s in zip(paths, shapes))
@@ -64,6 +79,29 @@ def _like_with_like(paths: Sequence[str | Path], sources: list[RunReader]) -> No
     for p, r in zip(paths[1:], sources[1:]):
         if not np.array_equal(r.image(S.OBJECT_IMAGE), first):
             raise RunFileError(f"{p}: its {S.OBJECT_IMAGE} differs from {paths[0]}'s; merge like with like")
+    gaps = [0.0]
+    for p, r in zip(paths[1:], sources[1:]):
+        gap = reference_difference(sources[0].image(S.REFERENCE_FRAME), r.image(S.REFERENCE_FRAME))
+        gaps.append(gap)
+        if gap > REFERENCE_TOLERANCE:
+            raise RunFileError(
+                f"{p}: its {S.REFERENCE_FRAME} differs from {paths[0]}'s by up to {gap:.1f} grey levels (after a "
+                f"{REFERENCE_BLUR_PX:g} px blur; sensor noise stays under {REFERENCE_TOLERANCE:g}): another sensor, "
+                "lighting or gel, or a contact in the no-contact frame; the merged file keeps one reference frame, "
+                "so merge like with like (split and train take several run files)"
+            )
+    return gaps
+
+
+def reference_difference(a: np.ndarray, b: np.ndarray) -> float:
+    """The largest difference between two reference frames, in grey levels, after a Gaussian blur of
+    REFERENCE_BLUR_PX that averages away per-pixel noise (module docstring)."""
+    import cv2
+
+    if a.shape != b.shape:
+        return float("inf")
+    blur = [cv2.GaussianBlur(np.asarray(x, np.float32), (0, 0), REFERENCE_BLUR_PX) for x in (a, b)]
+    return float(np.abs(blur[0] - blur[1]).max()) if a.size else 0.0
 
 
 def _offsets(sources: list[RunReader], period: float) -> list[tuple[float, float]]:
@@ -110,16 +148,15 @@ def merge_runs(paths: Sequence[str | Path], out: str | Path) -> int:
     sources: list[RunReader] = []
     try:
         for p in paths:
-            sources.append(RunReader.open(p))
-            sources[-1].verify_frames()
-        _like_with_like(paths, sources)
-        return _write(paths, sources, out)
+            sources.append(RunReader.open(p))  # rows, attributes and images verified; each frame as it is copied
+        gaps = _like_with_like(paths, sources)
+        return _write(paths, sources, out, gaps)
     finally:
         for r in sources:
             r.close()
 
 
-def _write(paths: Sequence[str | Path], sources: list[RunReader], out: Path) -> int:
+def _write(paths: Sequence[str | Path], sources: list[RunReader], out: Path, gaps: list[float]) -> int:
     first = sources[0]
     phases: list[str] = []
     for r in sources:
@@ -131,13 +168,14 @@ def _write(paths: Sequence[str | Path], sources: list[RunReader], out: Path) -> 
     origins = [_origin(r) for r in sources]
     lines = [
         f"{Path(p).resolve()}: {r.n} frames, status {r.status}, t_frame_s and stream {off_t:+.6f} s, "
-        f"t_capture_s {off_c:+.6f} s, contact_origin {origin}"
-        for p, r, (off_t, off_c), origin in zip(paths, sources, offsets, origins)
+        f"t_capture_s {off_c:+.6f} s, contact_origin {origin}, reference frame within {gap:.1f} grey levels"
+        for p, r, (off_t, off_c), origin, gap in zip(paths, sources, offsets, origins, gaps)
     ]
     header = RunHeader(
         protocol_name=protocol_name,
         protocol_toml=protocol_toml,
-        rig_config="merged from (file: frames, status, time offsets added, contact point):\n" + "\n".join(lines),
+        rig_config="merged from (file: frames, status, time offsets added, contact point, reference frame's "
+        "difference from the first's, blurred):\n" + "\n".join(lines),
         object_name=first.text(S.ATTR_OBJECT),
         object_geometry=first.text(S.ATTR_OBJECT_GEOMETRY),
         sensor_kind=first.text(S.ATTR_SENSOR_KIND),

@@ -15,8 +15,10 @@ from pathlib import Path
 import h5py
 import numpy as np
 
+from acquisition import attr_checksum
 from acquisition import run_checks as C
 from acquisition import schema as S
+from acquisition.chunk_checksum import ChunkIndexError, chunk_index
 from acquisition.run_layout import attr_problems, decode_phases, field_problems
 from acquisition.run_reader import RunReader, open_for_reading
 from acquisition.writer_lock import RunFileError
@@ -146,6 +148,9 @@ def _check_open_run(f: h5py.File, out: Check, max_skew_s: float, sample_frames: 
     problems = field_problems(f)
     out.findings += [f"{name}: {p}" for name, p in problems.items()]
     out.findings += [f"attribute {name}: {p}" for name, p in attr_problems(f).items()]
+    finding, note = attr_checksum.problem(f)
+    out.findings += [finding] if finding else []
+    out.notes += [note] if note else []
     sound = {fl.path for fl in S.FIELDS if fl.path not in problems and fl.path in f}  # optional ones may be absent
     findings, notes = C.checksum_findings(f, sound)
     out.findings += findings
@@ -183,7 +188,14 @@ def _check_open_run(f: h5py.File, out: Check, max_skew_s: float, sample_frames: 
 
 
 def _check_frames(frames: h5py.Dataset, n: int, sample_frames: int | None, out: Check) -> None:
-    """Read frames (all, or an even sample): checksums, and black, constant or saturated images."""
+    """Read frames (all, or an even sample): checksums, and black, constant or saturated images.
+    A chunk index that cannot be read is one finding (each frame's read would fail on it, slowly)."""
+    if frames.chunks is not None:
+        try:
+            chunk_index(frames)
+        except ChunkIndexError as exc:
+            out.findings.append(f"{S.FRAMES}: {exc}")
+            return
     if sample_frames is None:
         wanted = np.arange(n)
     else:

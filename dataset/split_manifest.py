@@ -4,7 +4,11 @@
 expected) and each part's index file (rows of (run, frame) inside the runs the manifest lists).
 ``check_unchanged`` compares every run file with the identity the split recorded
 (acquisition/run_identity.py): ``train``, ``evaluate`` and ``generate --split`` read no frame of a
-file that changed since the split verified it.
+file that changed since the split verified it. It also reads every value ``split.json`` says about a
+run (frames, object, sensor, status, mm per pixel, frame shape, sensor profile) back from the run
+file through the verified reader and refuses a split whose ``split.json`` says otherwise: those
+values place the condition and pick the physics render, and nothing ties a hand-edited ``split.json``
+to the files it lists.
 """
 
 from __future__ import annotations
@@ -15,8 +19,10 @@ from pathlib import Path
 
 import numpy as np
 
+from acquisition import schema as S
 from acquisition.run_identity import KEYS as IDENTITY_KEYS
 from acquisition.run_identity import changed_since
+from acquisition.run_reader import RunReader
 from common.errors import ToolError
 
 MANIFEST = "split.json"
@@ -131,11 +137,38 @@ def load_split(directory: str | Path) -> tuple[dict, dict[str, np.ndarray]]:
 
 
 def check_unchanged(manifest: dict, directory: str | Path) -> None:
-    """SplitError naming the first run file that changed since the split recorded its identity."""
-    for run in manifest["runs"]:
+    """SplitError naming the first run file that changed since the split recorded its identity, or
+    the first value of ``split.json`` its run file does not say (module docstring)."""
+    for i, run in enumerate(manifest["runs"]):
         change = changed_since(run["path"], run["identity"])
         if change:
             raise SplitError(
                 f"{run['path']}: changed since the split {directory} verified it: {change}; make the split again "
                 "with `dataset split` (it verifies the file anew)"
             )
+        with RunReader.open(run["path"]) as reader:
+            differs = _differs(run, reader)
+        if differs:
+            key, said, actual = differs
+            raise SplitError(
+                f"{Path(directory) / MANIFEST}: [runs][{i}].{key} is {said!r}, but the run file {run['path']} says "
+                f"{actual!r}: {MANIFEST} was changed since the split was made; make the split again with "
+                "`dataset split`"
+            )
+
+
+def _differs(run: dict, reader: RunReader) -> tuple[str, object, object] | None:
+    """(key, split.json's value, the run file's) of the first value that differs; None when all agree."""
+    actual = {
+        "frames": reader.n,
+        "object": reader.text(S.ATTR_OBJECT),
+        "sensor": reader.text(S.ATTR_SENSOR_KIND),
+        "status": reader.status,
+        "mm_per_px": reader.number(S.ATTR_MM_PER_PX),
+        "frame_shape": list(reader.frame_shape),
+        "sensor_profile": reader.sensor_profile,
+    }
+    for key, value in actual.items():
+        if key in run and run[key] != value:
+            return key, run[key], value
+    return None

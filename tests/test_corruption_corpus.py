@@ -26,7 +26,7 @@ import h5py
 import numpy as np
 import pytest
 from test_acquisition import QUICK
-from test_verified_reads import chunk_middle, flip, write_run
+from test_verified_reads import chunk_index_byte, chunk_middle, flip, write_run
 from typer.testing import CliRunner
 
 from acquisition import schema as S
@@ -60,6 +60,13 @@ def _cut(path: Path, keep) -> None:
     path.write_bytes(data[: keep(len(data))])
 
 
+def _relabel(path: Path, old: bytes, new: bytes) -> None:
+    """Text attributes live in HDF5's global heap, which has no checksum: edited there, in place."""
+    data = path.read_bytes()
+    assert old in data and len(old) == len(new)
+    path.write_bytes(data.replace(old, new))
+
+
 # name: (how to damage a copy, the frame the refusal must name or None)
 DAMAGES = {
     "superblock bit flip": (lambda p: flip(p, 13), None),
@@ -68,6 +75,11 @@ DAMAGES = {
     "middle frame bit flip": (lambda p: flip(p, chunk_middle(p, S.FRAMES, MIDDLE)), MIDDLE),
     "last frame bit flip": (lambda p: flip(p, chunk_middle(p, S.FRAMES, -1)), "last"),
     "wrench chunk bit flip": (lambda p: flip(p, chunk_middle(p, S.WRENCH, 0)), None),
+    "stream chunk bit flip": (lambda p: flip(p, chunk_middle(p, S.WRENCH_STREAM, 0)), None),
+    "object image bit flip": (lambda p: flip(p, chunk_middle(p, S.OBJECT_IMAGE, 0)), None),
+    "reference frame bit flip": (lambda p: flip(p, chunk_middle(p, S.REFERENCE_FRAME, 0)), None),
+    "frames chunk index bit flip": (lambda p: flip(p, chunk_index_byte(p, S.FRAMES)), None),
+    "object name relabelled": (lambda p: _relabel(p, b"sphere10mm", b"sphere15mm"), None),
     "cut by 1000 bytes": (lambda p: _cut(p, lambda n: n - 1000), None),
     "cut to 1000 bytes": (lambda p: _cut(p, lambda n: 1000), None),
     "cut to half": (lambda p: _cut(p, lambda n: n // 2), None),
@@ -209,7 +221,8 @@ def test_every_command_refuses_the_damage_in_one_line_or_is_unchanged(corpus, da
     for name, outcome in outcomes.items():
         CORPUS_TABLE[(damage, name)] = outcome
     # what must refuse whatever the damage: every command that reads the whole file or trusts a split
-    for name in ("validate", "split", "merge", "compact", "export", "train", "evaluate", "resume"):
+    # (compact of a file compressed already reads no frame: its output stays the sound file's)
+    for name in ("validate", "split", "merge", "export", "train", "evaluate", "resume"):
         assert outcomes[name] == "refused", (damage, name)
 
 
@@ -223,3 +236,51 @@ def test_zz_print_the_table():
         print(f"| {damage} | " + " | ".join(CORPUS_TABLE.get((damage, c), "?") for c in COMMAND_NAMES) + " |")
     silent = [k for k, v in CORPUS_TABLE.items() if v not in ("refused", "identical")]
     assert not silent
+
+
+# -- --resume of a run whose writer crashed (status running) ----------------------------------
+
+
+def _grow_stream(path: Path, rows: int) -> None:
+    """The stream's extent grown by ``rows`` that were never written, as a kill between the two leaves it."""
+    _edit(path, lambda f: f[S.WRENCH_STREAM].resize(f[S.WRENCH_STREAM].shape[0] + rows, axis=0))
+
+
+# name: (how the crash or damage left the file, the frame or stream rows the refusal names; None: resumed)
+CRASHES = {
+    "sound": (lambda p: None, None),
+    "last frame cut short": (lambda p: flip(p, chunk_middle(p, S.FRAMES, -1)), None),
+    "stream tail never written": (lambda p: _grow_stream(p, 5), None),
+    "middle frame damaged": (lambda p: flip(p, chunk_middle(p, S.FRAMES, 8)), "frames[8]"),
+    "stream chunk damaged before a sound one": (
+        lambda p: flip(p, chunk_middle(p, S.WRENCH_STREAM, 0)),
+        "wrench_stream[0:1024]",
+    ),
+}
+
+
+@pytest.mark.parametrize("crash", list(CRASHES))
+def test_resume_of_a_crashed_run_keeps_what_reached_the_disk_and_refuses_damage(tmp_path, crash):
+    """A run killed after 20 of its 33 frames (status running; 60 stream rows a frame, so two stream
+    chunks): `--resume` drops only a tail that never reached the disk and completes the run, which
+    then validates; damage followed by sound frames or stream rows is refused in one line naming them."""
+    from dataset.runs import validate
+
+    (tmp_path / "quick.toml").write_text(QUICK)
+    protocol = load_protocol(tmp_path / "quick.toml")
+    n = Plan.of(protocol).frame_count
+    run = write_run(tmp_path / "crashed.h5", n, written=20, close=False, protocol=protocol, samples=60, size=256)
+    damage, named = CRASHES[crash]
+    damage(run)
+    result = runner.invoke(rig_app, ["run-protocol", str(tmp_path / "quick.toml"), "--sim", "--resume", str(run)])
+    assert "Traceback" not in result.output, result.output
+    if named is None:
+        assert result.exit_code == 0, result.output
+        assert validate(run) == [], validate(run)
+        with h5py.File(run, "r") as f:
+            assert f[S.FRAMES].shape[0] == n and f[S.STATUS][()] == b"complete"
+        return
+    assert result.exit_code == 1, result.output
+    errors = [line for line in result.output.splitlines() if line.startswith("error:")]
+    assert len(errors) == 1 and str(run) in errors[0] and named in errors[0] and "cannot resume" in errors[0], errors
+    assert not list(tmp_path.glob("*.lock"))

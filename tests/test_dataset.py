@@ -32,7 +32,8 @@ def make_run(
     rng = np.random.default_rng(seed)
     header = RunHeader("test", f"# {obj}", "", obj, "", "rgb", 14 / size, 1.0, n, (0, 0, 0, 0), PHASES)
     frames = rng.integers(20, 230, (n, size, size, 3), dtype=np.uint8)
-    w = RunWriter.create(path, header, (size, size, 3), get_indenter(obj).object_image(size, 14 / size), frames[0])
+    reference = np.random.default_rng(99).integers(20, 230, (size, size, 3), dtype=np.uint8)  # one sensor's
+    w = RunWriter.create(path, header, (size, size, 3), get_indenter(obj).object_image(size, 14 / size), reference)
     for i in range(n):
         w.append(
             frames[i],

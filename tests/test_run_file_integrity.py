@@ -20,6 +20,7 @@ from test_acquisition import QUICK, ctrl_c, interrupt_at, run
 from test_dataset import make_run
 from typer.testing import CliRunner
 
+from acquisition import attr_checksum
 from acquisition import schema as S
 from acquisition.executor import Acquisition
 from acquisition.run_file import RunFileError, RunLocked, RunWriter, open_for_reading
@@ -326,9 +327,10 @@ def test_each_missing_or_malformed_dataset_is_one_line_naming_it(tmp_path, case)
 
 def test_a_missing_attribute_is_a_finding(tmp_path):
     path = make_run(tmp_path / "run.h5", n=5, size=16)
-    with h5py.File(path, "r+") as f:
+    with h5py.File(path, "r+") as f:  # as a writer that wrote them so would have left them (checksum and all)
         del f.attrs[S.ATTR_CAPTURE_HZ]
         f.attrs[S.ATTR_CONTACT_ORIGIN] = "here"
+        attr_checksum.seal(f)
     assert validate(path) == [
         f"attribute {S.ATTR_CAPTURE_HZ}: missing",
         f"attribute {S.ATTR_CONTACT_ORIGIN}: is 'here', expected 4 numbers",
@@ -531,6 +533,7 @@ def test_optional_attributes_are_checked_when_present(tmp_path):
     with h5py.File(path, "w") as f:
         for name, kind in S.ATTRS:
             f.attrs[name] = {"str": "x", "float": 1.0, "int": 1, "float[4]": [0.0] * 4, "str[]": ["a"]}[kind]
+        f.attrs[S.ATTR_SENSOR_KIND] = "rgb"  # text, and one of the sensor kinds
     with h5py.File(path, "r") as f:
         assert attr_problems(f) == {}
     with h5py.File(path, "a") as f:

@@ -56,10 +56,15 @@ def write_run(
     codec: str | None = S.FAST_CODEC,
     varied: bool = False,
     protocol=None,
+    written: int | None = None,
+    samples: int = 3,
+    size: int = SIZE,
 ) -> Path:
     """A run of ``n`` frames with a full-rate stream; ``profile`` the record it keeps (default: the
     shipped profile's; "": none); ``close=False`` leaves it as a crash would (status running);
-    ``protocol``: recorded as its run (name, text, rate), for ``--resume`` with it."""
+    ``protocol``: recorded as its run (name, text, rate), for ``--resume`` with it; ``written``: the
+    frames written of the ``n`` planned (default all); ``samples``: stream rows per frame; ``size``: the
+    frames' side in pixels."""
     record = default_profile().record() if profile is None else profile
     header = RunHeader(
         protocol.name if protocol else "test",
@@ -78,13 +83,13 @@ def write_run(
         object_photo_sha256="ab" * 32 if object_file else "",
     )
     rng = np.random.default_rng(seed)
-    frames = rng.integers(20, 230, (n + 1, SIZE, SIZE, 3), dtype=np.uint8)
+    frames = rng.integers(20, 230, (n + 1, size, size, 3), dtype=np.uint8)
     if varied:  # frames of growing entropy: compressed chunks of many lengths
-        frames = np.stack([rng.integers(20, 22 + 5 * i, (SIZE, SIZE, 3), dtype=np.uint8) for i in range(n + 1)])
-    w = RunWriter.create(
-        path, header, (SIZE, SIZE, 3), get_indenter("sphere10mm").object_image(SIZE, 14 / SIZE), frames[n], codec=codec
-    )
-    for i in range(n):
+        frames = np.stack([rng.integers(20, 22 + 5 * i, (size, size, 3), dtype=np.uint8) for i in range(n + 1)])
+    reference = np.random.default_rng(99).integers(20, 230, (size, size, 3), dtype=np.uint8)  # one sensor's
+    image = get_indenter("sphere10mm").object_image(size, 14 / size)
+    w = RunWriter.create(path, header, (size, size, 3), image, reference, codec=codec)
+    for i in range(n if written is None else written):
         row = S.blank_row() | {
             S.WRENCH: rng.normal(size=6),
             S.POSE_MEASURED: np.array([0.05 * i, 0.0, -0.5, 0.0]),
@@ -94,7 +99,7 @@ def write_run(
             S.PHASE_INDEX: list(phases).index(phase),
             S.LEVEL: 1,
         }
-        stream = np.column_stack([np.linspace(t0 + i - 0.9, t0 + i, 3), rng.normal(size=(3, 6))])
+        stream = np.column_stack([np.linspace(t0 + i - 0.9, t0 + i, samples), rng.normal(size=(samples, 6))])
         w.append(frames[i], stream=stream, **row)
     if close:
         w.set_status("complete", "")
@@ -110,6 +115,27 @@ def flip(path: Path, at: int) -> None:
     data = bytearray(path.read_bytes())
     data[at] ^= 0x5A
     path.write_bytes(bytes(data))
+
+
+def chunk_index_byte(path: Path, name: str) -> int:
+    """A byte inside dataset ``name``'s chunk index (the header of its extensible array, HDF5's
+    "EAHD" block): each such block is flipped in a copy until only that dataset's chunks cannot be listed."""
+    data = path.read_bytes()
+    probe = path.with_name(path.name + ".probe")
+    at = data.find(b"EAHD")
+    while at >= 0:
+        copy = bytearray(data)
+        copy[at + 6] ^= 0x5A  # the element size, inside the checksummed header
+        probe.write_bytes(bytes(copy))
+        try:
+            with h5py.File(probe, "r") as f:
+                f[name].id.chunk_iter(lambda info: None)
+        except RuntimeError:
+            return at + 6
+        finally:
+            probe.unlink()
+        at = data.find(b"EAHD", at + 4)
+    raise AssertionError(f"{path}: no chunk index of {name} found")
 
 
 def chunk_middle(path: Path, name: str, index: int) -> int:
@@ -306,7 +332,7 @@ def test_a_byte_order_mark_is_read_and_the_import_round_trips(folder, tmp_path):
     with RunReader.open(out) as a, RunReader.open(tmp_path / "src.h5") as b:
         for fl in S.PER_FRAME_FIELDS:
             assert np.array_equal(a.rows[fl.path], b.rows[fl.path]), fl.path
-        assert a.sensor_profile == ""  # imported without --profile: says it has none
+        assert a.sensor_profile == b.sensor_profile != ""  # the exported run's own profile came back with it
 
 
 @pytest.mark.parametrize("damage", ["missing png", "another size"])
