@@ -1,80 +1,91 @@
-"""Fit the shipped GelSight Mini sensor profile to the real presses (the real frames beside the checkout).
+"""Fit the shipped sensor profiles to the real presses (the real frames beside the checkout).
 
-    .venv/bin/python bench/calibrate_optics.py [--data DIR]   # default: the real frames beside the checkout
+    .venv/bin/python bench/calibrate_optics.py [--sensor gelsight_mini|gelsight] [--data DIR] [--out TOML]
 
-Calls ``sensor_sim.calibration.fit_optics`` on the no-contact background and the
-five ball presses (a ~4 mm steel ball: Taxim's calibration data), finding each contact
-automatically (the published circles in presses.csv are printed beside them), and
-writes sensor_sim/data/gelsight_mini.toml with its background gelsight_mini.png:
-the real background cropped to the simulator's 14 mm square field of view.
+Calls ``sensor_sim.calibration.fit_optics`` on the no-contact background and the ball presses
+(a ~4 mm steel ball: Taxim's calibration data), finding each contact automatically (the
+published circles in presses.csv are printed beside them), measures the camera's noise
+(``calibration_report.estimate_noise``) and writes the profile with its background beside it:
+
+- ``gelsight_mini`` (the default): sensor_sim/data/gelsight_mini.toml from its five presses, the
+  real background cropped to the simulator's 14 mm square field of view, rendered at 256 × 256
+  (the simulated rig's frame and the model's image);
+- ``gelsight``: sensor_sim/data/gelsight_original.toml from the 24 presses of an original
+  GelSight spread over its field, the whole 640 × 480 frame at its own resolution (a sensor
+  that is not square, with the light's change across the field).
 """
 
 from __future__ import annotations
 
 import argparse
 import csv
-import time
 from pathlib import Path
 
 import cv2
 
 from sensor_sim.calibration import Press, fit_optics
-from sensor_sim.profile import DEFAULT_PROFILE, SensorProfile, save_profile
+from sensor_sim.calibration_report import estimate_noise, profile_from_fit
+from sensor_sim.elastomer import Elastomer
+from sensor_sim.profile import DEFAULT_PROFILE, save_profile
 
 MM_PER_PX = 0.0295  # as given by the data's publisher, approximate
 BALL_RADIUS_MM = 2.0
-CROP_MM = 14.0  # the square field of view the simulated sensor uses
-FRAME_PX = 256
 SOURCE = (
-    "GelSight Mini frames from the Taxim calibration data (CMURoboTouch, MIT licence: "
-    "LICENSE-gelsight-mini-data), as redistributed in the PyPI package taxim 1.4.1"
+    "{what} frames from the Taxim calibration data (CMURoboTouch, MIT licence: LICENSE-gelsight-mini-data), "
+    "as redistributed in the PyPI package taxim 1.4.1"
 )
+# name → (what the frames are, the profile written, the field (mm, None: the whole frame), frame width px)
+SENSORS = {
+    "gelsight_mini": ("GelSight Mini", DEFAULT_PROFILE, (14.0, 14.0), 256),
+    "gelsight": ("Original GelSight", DEFAULT_PROFILE.with_name("gelsight_original.toml"), None, None),
+}
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument(
-        "--data", type=Path, default=Path(__file__).resolve().parents[2] / "shared" / "data" / "gelsight_mini"
-    )
-    ap.add_argument("--out", type=Path, default=DEFAULT_PROFILE)
+    ap.add_argument("--sensor", choices=sorted(SENSORS), default="gelsight_mini")
+    ap.add_argument("--data", type=Path, help="the frames (default: shared/data/SENSOR beside the checkout)")
+    ap.add_argument("--out", type=Path, help="the profile to write (default: the shipped one)")
     args = ap.parse_args()
-    background = cv2.imread(str(args.data / "background.png"), cv2.IMREAD_COLOR)
-    rows = list(csv.DictReader(open(args.data / "presses.csv")))
-    presses = [
-        Press(cv2.imread(str(args.data / r["file"]), cv2.IMREAD_COLOR), BALL_RADIUS_MM, name=r["file"]) for r in rows
-    ]
-    t0 = time.perf_counter()
-    fit = fit_optics(background, presses, MM_PER_PX)
+    what, shipped, field_mm, frame_px = SENSORS[args.sensor]
+    data = args.data or Path(__file__).resolve().parents[2] / "shared" / "data" / args.sensor
+    background = cv2.imread(str(data / "background.png"), cv2.IMREAD_COLOR)
+    rows = list(csv.DictReader(open(data / "presses.csv")))
+    presses = [Press(cv2.imread(str(data / r["file"]), cv2.IMREAD_COLOR), BALL_RADIUS_MM, name=r["file"]) for r in rows]
+    gel = Elastomer()
+    fit = fit_optics(background, presses, MM_PER_PX, gel=gel)
+    noise = estimate_noise(background, presses, fit.contacts)
+    print(f"{len(presses)} presses from {data}: fitted in {fit.seconds:.1f} s, blur {fit.light.blur_mm:g} mm")
+    for note in fit.notes:
+        print(f"note: {note}")
     print(
-        f"{len(presses)} presses from {args.data}: fitted in {time.perf_counter() - t0:.1f} s, "
-        f"blur {fit.light.blur_mm:g} mm\n"
+        f"light: position order {fit.order.order}; noise: std {noise.std_bgr} (b, g, r), correlation "
+        f"{noise.correlation_px} px, between channels {noise.channel_correlation}\n"
     )
     print(
-        "| press | found centre x, y px | radius px | published centre | published touch radius | "
-        "MAE whole | MAE within 1.5 radii |\n|---|---|---|---|---|---|---|"
+        "| press | found centre x, y px | radius px | depth mm | published centre | published touch radius |\n"
+        "|---|---|---|---|---|---|"
     )
-    for r, c, whole, near in zip(rows, fit.contacts, fit.press_mae, fit.press_mae_near):
+    for r, c in zip(rows, fit.contacts):
         print(
-            f"| {r['file']} | {c.centre_x_px:.1f}, {c.centre_y_px:.1f} | {c.radius_px:.1f} | "
-            f"{r['touch_center_x_px']}, {r['touch_center_y_px']} | {r['touch_radius_px']} | "
-            f"{whole:.2f} | {near:.2f} |"
+            f"| {r['file']} | {c.centre_x_px:.1f}, {c.centre_y_px:.1f} | {c.radius_px:.1f} | {c.depth_mm:.3f} | "
+            f"{r['touch_center_x_px']}, {r['touch_center_y_px']} | {r['touch_radius_px']} |"
         )
-    h, w = background.shape[:2]
-    side = int(round(CROP_MM / MM_PER_PX))
-    y0, x0 = (h - side) // 2, (w - side) // 2
-    profile = SensorProfile(
-        name="gelsight_mini",
-        source=SOURCE,
-        width_px=FRAME_PX,
-        height_px=FRAME_PX,
-        mm_per_px=CROP_MM / FRAME_PX,
-        gel_thickness_mm=3.0,
-        gel_E_MPa=0.25,
-        noise_std=1.0,
-        light=fit.light,
-        background=background[y0 : y0 + side, x0 : x0 + side],
+    profile = profile_from_fit(
+        background,
+        fit,
+        MM_PER_PX,
+        name=shipped.stem,
+        source=SOURCE.format(what=what),
+        noise=noise,
+        gel=gel,
+        frame_width_px=frame_px,
+        field_mm=field_mm,
     )
-    print(f"\nwrote {save_profile(profile, args.out)} and its {side}x{side} background")
+    print(
+        f"\nwrote {save_profile(profile, args.out or shipped)} and its "
+        f"{profile.background.shape[1]}x{profile.background.shape[0]} background"
+    )
 
 
 if __name__ == "__main__":

@@ -8,8 +8,9 @@ read back one at a time (what export and the PyTorch Dataset do). Frame sets:
 
 - real: the PNG frames in ``--real DIR`` (e.g. a folder of GelSight Mini frames), at
   their own size and centre-cropped square and resized to 256×256 as the rig stores them;
-- simulated rgb, rgb_markers, white_markers: 256×256 frames of the built-in sensor,
-  a sphere pressed 0.2–1.6 mm and sheared, with the sensor noise on.
+- simulated rgb, rgb_markers, white_markers: 256×256 frames of the shipped sensor profile
+  as the simulated rig renders them, a sphere pressed 0.2–1.6 mm and sheared, with the
+  profile's measured camera noise on.
 
 Each codec's output is checked equal to its input (lossless) before it is timed.
 Blosc and Zstd come from hdf5plugin; gzip and lzf are built into h5py.
@@ -78,15 +79,18 @@ def real_frames(folder: Path) -> list[np.ndarray]:
 
 
 def simulated_frames(kind: str, n: int) -> list[np.ndarray]:
+    """As the simulated rig draws them: the shipped profile's optics, background and measured
+    (spatially correlated) camera noise, through the one render function."""
     from objects.pose import Pose
-    from sensor_sim.scene import Scene
+    from sensor_sim.press_render import PressRender
+    from sensor_sim.profile import default_profile
 
-    scene = Scene("sphere10mm", kind, seed=1)
+    press = PressRender(default_profile(), "sphere10mm", kind, noise=True, seed=1)
     out = []
     for i in range(n):
         depth = 0.2 + 1.4 * i / max(1, n - 1)
         shear = 0.5 * np.sin(i / 3)
-        out.append(scene.frame(Pose(shear, 0.0, -depth, 2.0 * np.cos(i / 5))).image)
+        out.append(press.render(Pose(shear, 0.0, -depth, 2.0 * np.cos(i / 5))))
     return out
 
 

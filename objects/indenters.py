@@ -5,6 +5,10 @@ stiffest contact the simulated rig can press (for the force guard's worst case).
 
 ``Indenter.separation(u, v)`` is the height (mm, ≥ 0) of the face above its lowest
 point at local coordinates (u, v) mm, where the face is not there it is FAR_MM.
+``feature_mm`` is the face's smallest feature (a sphere's diameter, a ring's width, a
+texture's half period): a contact solver needs about two cells across it to see it.
+``texture_mm`` is a texture board's band of texture periods (shortest, longest), where the
+texture-fidelity measure looks (model/texture_measure.py); None for a shape.
 ``object_image`` is what a camera looking at the contact face sees: the condition
 image of the learned model.
 """
@@ -27,7 +31,13 @@ class Indenter:
     radius_mm: float  # bounding radius of the face (for cropping and placement)
     separation: Callable[[np.ndarray, np.ndarray], np.ndarray] = field(repr=False)
     color_bgr: tuple[int, int, int] = (170, 170, 175)  # steel / 3D-print grey
+    feature_mm: float | None = None  # smallest feature of the face; None: its whole width (2 × radius_mm)
+    texture_mm: tuple[float, float] | None = None  # a board's texture periods, shortest and longest
     has_geometry: ClassVar[bool] = True  # an object file without a height map has none (objects/object_file.py)
+
+    @property
+    def smallest_feature_mm(self) -> float:
+        return self.feature_mm if self.feature_mm is not None else 2.0 * self.radius_mm
 
     def separation_at(self, X: np.ndarray, Y: np.ndarray, x_mm: float, y_mm: float, theta_deg: float) -> np.ndarray:
         """Separation on sensor coordinates (X, Y) mm for the indenter axis at (x, y), turned by θ."""
@@ -65,7 +75,9 @@ def sphere(diameter_mm: float) -> Indenter:
         r2 = u * u + v * v
         return np.where(r2 < r_ball * r_ball, r_ball - np.sqrt(np.maximum(r_ball * r_ball - r2, 0.0)), FAR_MM)
 
-    return Indenter(f"sphere{diameter_mm:g}mm", f"sphere, {diameter_mm:g} mm diameter", r_ball, sep)
+    return Indenter(
+        f"sphere{diameter_mm:g}mm", f"sphere, {diameter_mm:g} mm diameter", r_ball, sep, feature_mm=diameter_mm
+    )
 
 
 def flat_circle(diameter_mm: float) -> Indenter:
@@ -75,13 +87,18 @@ def flat_circle(diameter_mm: float) -> Indenter:
         f"flat circular punch, {diameter_mm:g} mm diameter",
         a,
         lambda u, v: np.where(_radius(u, v) <= a, 0.0, FAR_MM),
+        feature_mm=diameter_mm,
     )
 
 
 def _flat_square(name: str, description: str, side_mm: float) -> Indenter:
     s = side_mm / 2
     return Indenter(
-        name, description, s * math.sqrt(2), lambda u, v: np.where((np.abs(u) <= s) & (np.abs(v) <= s), 0.0, FAR_MM)
+        name,
+        description,
+        s * math.sqrt(2),
+        lambda u, v: np.where((np.abs(u) <= s) & (np.abs(v) <= s), 0.0, FAR_MM),
+        feature_mm=side_mm,
     )
 
 
@@ -102,7 +119,7 @@ def ring(outer_mm: float = 8.0, inner_mm: float = 5.0) -> Indenter:
         r = _radius(u, v)
         return np.where((r <= ro) & (r >= ri), 0.0, FAR_MM)
 
-    return Indenter("ring", f"flat ring, {outer_mm:g}/{inner_mm:g} mm diameters", ro, sep)
+    return Indenter("ring", f"flat ring, {outer_mm:g}/{inner_mm:g} mm diameters", ro, sep, feature_mm=ro - ri)
 
 
 def heart(width_mm: float = 8.0) -> Indenter:
@@ -113,7 +130,7 @@ def heart(width_mm: float = 8.0) -> Indenter:
         inside = (x * x + y * y - 1) ** 3 - x * x * y**3 <= 0
         return np.where(inside, 0.0, FAR_MM)
 
-    return Indenter("heart", f"flat heart, {width_mm:g} mm wide", width_mm * 0.7, sep)
+    return Indenter("heart", f"flat heart, {width_mm:g} mm wide", width_mm * 0.7, sep, feature_mm=width_mm / 2)
 
 
 def woven(period_mm: float = 2.0, amplitude_mm: float = 0.25) -> Indenter:
@@ -126,7 +143,36 @@ def woven(period_mm: float = 2.0, amplitude_mm: float = 0.25) -> Indenter:
         top = np.maximum(warp, weft)
         return amplitude_mm * (1.0 - top)
 
-    return Indenter("woven", f"woven texture board, {period_mm:g} mm period", 100.0, sep, (90, 140, 200))
+    # threads every period (|sin| repeats each period_mm), over and under every two periods
+    return Indenter(
+        "woven",
+        f"woven texture board, {period_mm:g} mm period",
+        100.0,
+        sep,
+        (90, 140, 200),
+        feature_mm=period_mm / 2,
+        texture_mm=(period_mm / 2, 2 * period_mm),
+    )
+
+
+def ridged(period_mm: float = 1.5, amplitude_mm: float = 0.2) -> Indenter:
+    """A ridged board: straight parallel ridges across y, a smooth (1 − cos) profile, a board
+    larger than any sensor — a texture neither woven nor irregular, for holding a board out."""
+    k = 2 * math.pi / period_mm
+
+    def sep(u, v):
+        u, v = np.broadcast_arrays(u, v)
+        return amplitude_mm * 0.5 * (1.0 + np.cos(k * u))
+
+    return Indenter(
+        "ridged",
+        f"ridged texture board, {period_mm:g} mm period",
+        100.0,
+        sep,
+        (150, 120, 90),
+        feature_mm=period_mm / 2,
+        texture_mm=(period_mm / 2, 2 * period_mm),
+    )
 
 
 def irregular(seed: int = 7, amplitude_mm: float = 0.3, corr_mm: float = 0.8) -> Indenter:
@@ -157,7 +203,16 @@ def irregular(seed: int = 7, amplitude_mm: float = 0.3, corr_mm: float = 0.8) ->
         coords = np.stack([(v + half) / step, (u + half) / step])
         return map_coordinates(raster, coords.reshape(2, -1), order=1, mode="nearest").reshape(u.shape)
 
-    return Indenter("irregular", "irregular bumpy texture board", 100.0, sep, (120, 160, 120))
+    # bumps of width ~2σ spaced ~1.3 mm apart (500 over 28 × 28 mm), clustering up to a few mm
+    return Indenter(
+        "irregular",
+        "irregular bumpy texture board",
+        100.0,
+        sep,
+        (120, 160, 120),
+        feature_mm=corr_mm,
+        texture_mm=(corr_mm, 5 * corr_mm),
+    )
 
 
 INDENTERS: dict[str, Callable[[], Indenter]] = {
@@ -171,6 +226,7 @@ INDENTERS: dict[str, Callable[[], Indenter]] = {
     "heart": heart,
     "woven": woven,
     "irregular": irregular,
+    "ridged": ridged,
     "plate20mm": plate,
 }
 

@@ -1,51 +1,66 @@
 """Fit a sensor's optics (``LightModel``) to a no-contact frame and a few ball presses.
 
     result = fit_optics(background, [Press(img, ball_radius_mm=2.0), ...], mm_per_px=0.0295)
-    result.light, result.contacts, result.press_mae
+    result.light, result.contacts, result.notes
 
-Each contact's centre and radius are found from the difference to the background
-(``find_contact``) and refined by the fit itself, unless the press gives them. The
-surface of a press is the ball's spherical cap inside the contact circle and the
-gel's relaxation outside it (Hertz's half-space profile, scaled to meet the cap).
-Per channel the colour change is a smooth lookup table over the surface normal
-(``optics.LightModel``), linear in its entries, so the fit is a regularised least
-squares; the optical blur is chosen by best fit from a few values. numpy/scipy/cv2 only.
+Every press is rendered the way the simulator renders any press: the ball at a pose (its
+centre on the frame and its depth) through the contact solver of the simulated rig and the
+renderer (``sensor_sim.press_render.PressRender``, the profile's gel), at the frames' own
+resolution. The fit alternates:
+
+1. contacts from the frame alone (``contact_find.find_contact``: the changed region, then the
+   rim's circle), each depth from its contact radius through the solver (or the press's own);
+2. the light for those contacts: per channel a smooth lookup table over the surface normal,
+   position terms (the tables' change across the field) and sink terms (the colour change of
+   pressed-in gel), linear in all of them (``light_fit``); the optical blur by best fit over
+   [0, BLUR_MAX_MM]; the position terms kept only when leaving a press out says they help;
+3. each contact (centre, depth) refined under that light (Gauss–Newton on the rendered press,
+   robust weights), then the light once more.
+
+``result.notes`` names what a person should know: a parameter pinned at a bound of its
+range, a press whose fit stopped at its depth limit. numpy/scipy/cv2 only.
 """
 
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import dataclass, field
 
 import cv2
 import numpy as np
-import scipy.sparse as sp
-from scipy.optimize import minimize
-from scipy.sparse.linalg import spsolve
 
+from objects.indenters import sphere
+from objects.pose import Pose
+from sensor_sim.contact_find import CalibrationError, Contact, find_contact
+from sensor_sim.elastomer import Elastomer
 from sensor_sim.light import LightModel, normal_lookup
+from sensor_sim.light_fit import OrderChoice, PressSamples, choose_order, fit_light_terms, held_out_mae
+from sensor_sim.noise import SensorNoise
 
-BLURS_MM = (0.1, 0.2, 0.3)  # optical blur candidates (leave-one-out on the GelSight Mini: 0.2 best)
-TABLE_BINS = 21  # normal grid: 0.1 steps in nx, ny (17 and 25 fit the same, bench/optics_bench.py)
-SMOOTHING = 1.0  # λ per 1000 fitted pixels; 0.1–10 change the held-out error by < 2 %
+__all__ = ["CalibrationError", "CalibrationResult", "Contact", "Press", "find_contact", "fit_optics"]
+
+TABLE_BINS = 21  # normal grid: 0.1 steps in nx, ny
 FIT_RADII = 3.0  # pixels within this many contact radii of a press enter the fit
-# The visibly changed region reaches past the contact (the gel relaxes around it): the
-# contact radius is 0.70–0.77 of the region's on synthetic presses, 0.65 on the
-# real GelSight Mini ones after the fit. Radius and table trade off in the fit, so
-# a good start matters.
-RADIUS_OF_REGION = 0.75
-
-
-class CalibrationError(ValueError):
-    """Presses that cannot be fitted (no contact visible, wrong shapes, bad values)."""
+NEAR_RADII = 1.5  # "near the contact": where the blur is chosen (and renders are scored)
+SAMPLE_STEP = 2  # every second pixel (rows and columns) enters the fit
+BLUR_MAX_MM = 0.5  # the optical blur's range is [0, BLUR_MAX_MM]
+MIN_POSITION_PRESSES, MIN_SPAN = 4, 0.4  # presses needed, and the share of the field they span, for position terms
+START_BLUR_MM = 0.1  # the first light's, which the contacts are first refined under
+BLUR_STEPS = 6  # golden-section steps on the blur (to ~0.01 mm over the whole range)
+REFINE_ITERATIONS = 8
+FINAL_ROUNDS = 1  # contacts, then light, under the chosen model
+DEPTH_STEP_MM = 0.01  # finite differences of the refinement
+CENTRE_STEP_PX = 0.5
 
 
 @dataclass(frozen=True)
 class Press:
     """One real press: a frame (BGR, the background's size) of a ball of known radius.
 
-    ``centre_px`` (x, y) and ``radius_px`` override the contact found automatically;
-    ``depth_mm`` (from the stage's z) sets the starting contact radius √(R·d) instead.
+    ``centre_px`` (x, y) and ``radius_px`` override the contact found automatically (then used
+    as given); ``depth_mm`` (from the stage's z) is the starting depth instead of the one the
+    contact radius gives.
     """
 
     image: np.ndarray
@@ -55,156 +70,18 @@ class Press:
     depth_mm: float | None = None
     name: str = ""
 
-
-@dataclass(frozen=True)
-class Contact:
-    centre_x_px: float
-    centre_y_px: float
-    radius_px: float
+    @property
+    def given(self) -> bool:
+        return bool(self.centre_px and self.radius_px)
 
 
 @dataclass
 class CalibrationResult:
     light: LightModel
     contacts: list[Contact]
-    press_mae: list[float] = field(default_factory=list)  # whole frame, 0–255
-    press_mae_near: list[float] = field(default_factory=list)  # within 1.5 contact radii
-
-
-def find_contact(background: np.ndarray, image: np.ndarray) -> Contact:
-    """Centre and radius (px) of the pressed region: the centroid of where the colour
-    differs from the background by more than a third of its peak, and the contact radius
-    as RADIUS_OF_REGION × that region's equivalent radius (the refinement starts there)."""
-    diff = np.abs(cv2.GaussianBlur(image.astype(np.float32) - background.astype(np.float32), (0, 0), 3.0)).sum(axis=2)
-    peak = float(diff.max())
-    if peak < 15.0:  # three channels of ~5 grey levels: noise and exposure drift, not a press
-        raise CalibrationError(f"no contact visible: the frame differs from the background by at most {peak:.1f}")
-    mask = (diff > peak / 3).astype(np.uint8)
-    n, labels, stats, centroids = cv2.connectedComponentsWithStats(mask)
-    k = 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))
-    weight = np.where(labels == k, diff, 0.0)
-    ys, xs = np.mgrid[0 : diff.shape[0], 0 : diff.shape[1]]
-    cx, cy = float((weight * xs).sum() / weight.sum()), float((weight * ys).sum() / weight.sum())
-    return Contact(cx, cy, RADIUS_OF_REGION * math.sqrt(stats[k, cv2.CC_STAT_AREA] / math.pi))
-
-
-def ball_height_mm(shape: tuple[int, int], contact: Contact, ball_radius_mm: float, mm_per_px: float) -> np.ndarray:
-    """(H, W) gel surface height (mm, 0 = undeformed, negative = pressed in) for a ball press."""
-    h, w = shape
-    ys, xs = np.mgrid[0:h, 0:w].astype(np.float64)
-    r = np.hypot(xs - contact.centre_x_px, ys - contact.centre_y_px) * mm_per_px
-    R = ball_radius_mm
-    a = min(contact.radius_px * mm_per_px, 0.98 * R)
-    # Outside: Hertz's half-space surface (contact radius a, curvature 1/R); its sink at
-    # r = a is a²/2R. Inside: the spherical cap, lowered to meet it at the contact edge.
-    rr = np.maximum(r, a)
-    outside = ((2 * a * a - rr * rr) * np.arcsin(a / rr) + a * rr * np.sqrt(1 - (a / rr) ** 2)) / (math.pi * R)
-    edge_sink = a * a / (2 * R)
-    cap = np.sqrt(np.maximum(R * R - np.minimum(r, a) ** 2, 0.0)) - math.sqrt(R * R - a * a)
-    return -np.where(r <= a, edge_sink + cap, outside)
-
-
-def _window(contact: Contact, shape: tuple[int, int], radii: float, margin_px: int) -> tuple[slice, slice]:
-    half = int(radii * contact.radius_px) + margin_px
-    cx, cy = int(round(contact.centre_x_px)), int(round(contact.centre_y_px))
-    return slice(max(cy - half, 0), min(cy + half, shape[0])), slice(max(cx - half, 0), min(cx + half, shape[1]))
-
-
-def _local(contact: Contact, win: tuple[slice, slice]) -> Contact:
-    return Contact(contact.centre_x_px - win[1].start, contact.centre_y_px - win[0].start, contact.radius_px)
-
-
-def render_press(
-    light: LightModel, background: np.ndarray, contact: Contact, ball_radius_mm: float, mm_per_px: float
-) -> np.ndarray:
-    """(H, W, 3) float frame of a ball press rendered over ``background`` (no noise, no bound)."""
-    out = background.astype(np.float32).copy()
-    win = _window(contact, background.shape[:2], 4.0, int(4 * light.blur_mm / mm_per_px) + 4)
-    z = ball_height_mm(out[win].shape[:2], _local(contact, win), ball_radius_mm, mm_per_px)
-    out[win] += light.change(*light.slopes(z, mm_per_px), out[win])
-    return out
-
-
-def _laplacian(bins: int) -> sp.csr_matrix:
-    """Graph Laplacian of the bins × bins grid: penalises a table that is not smooth."""
-    line = sp.diags([-np.ones(bins - 1), np.r_[1.0, 2 * np.ones(bins - 2), 1.0], -np.ones(bins - 1)], [-1, 0, 1])
-    eye = sp.identity(bins)
-    return (sp.kron(eye, line) + sp.kron(line, eye)).tocsr()
-
-
-def fit_light(background, presses, contacts, mm_per_px, blur_mm, shading="multiplicative", bins=TABLE_BINS):
-    """Least-squares LightModel for known contacts; returns (model, RMS residual).
-
-    Per channel: min ‖A t − b‖² + λ‖L t‖² (L the grid Laplacian: normals the presses never
-    showed get a smooth continuation), with the flat normal's entry held at 0.
-    """
-    mean_bgr = background.reshape(-1, 3).mean(axis=0)
-    reference = (float(mean_bgr[0]), float(mean_bgr[1]), float(mean_bgr[2]))
-    probe = LightModel(np.zeros((3, bins, bins), np.float32), float(blur_mm), shading, reference)
-    idx_parts: list[np.ndarray] = []
-    w_parts: list[np.ndarray] = []
-    scale_parts: list[np.ndarray] = []
-    target_parts: list[np.ndarray] = []
-    for press, contact in zip(presses, contacts):
-        win = _window(contact, background.shape[:2], FIT_RADII, int(4 * blur_mm / mm_per_px) + 4)
-        local = _local(contact, win)
-        bg = background[win].astype(np.float32)
-        z = ball_height_mm(bg.shape[:2], local, press.ball_radius_mm, mm_per_px)
-        ys, xs = np.mgrid[0 : bg.shape[0], 0 : bg.shape[1]]
-        inside = np.hypot(xs - local.centre_x_px, ys - local.centre_y_px) < FIT_RADII * contact.radius_px
-        i, wt = normal_lookup(*probe.slopes(z, mm_per_px), bins)
-        idx_parts.append(i[inside])
-        w_parts.append(wt[inside])
-        scale_parts.append(
-            bg[inside] / np.asarray(reference, np.float32)
-            if shading == "multiplicative"
-            else np.ones((int(inside.sum()), 3), np.float32)
-        )
-        target_parts.append((press.image[win].astype(np.float32) - bg)[inside])
-    idx, w, scale, target = (np.concatenate(x) for x in (idx_parts, w_parts, scale_parts, target_parts))
-    n = len(target)
-    rows = np.repeat(np.arange(n), 4)
-    lap = _laplacian(bins)
-    keep = np.ones(bins * bins, bool)
-    keep[(bins // 2) * bins + bins // 2] = False  # the flat gel shows the background: no change
-    table = np.zeros((3, bins * bins))
-    sq_err = 0.0
-    for ch in range(3):
-        A = sp.csr_matrix(((w * scale[:, ch : ch + 1]).ravel(), (rows, idx.ravel())), shape=(n, bins * bins))[:, keep]
-        L = lap[:, keep]
-        M = (A.T @ A + SMOOTHING * n / 1000.0 * (L.T @ L)).tocsc()
-        t = spsolve(M, A.T @ target[:, ch])
-        table[ch, keep] = t
-        sq_err += float(np.sum((A @ t - target[:, ch]) ** 2))
-    table = np.clip(table, -255, 255).reshape(3, bins, bins)
-    return LightModel(table.astype(np.float32), float(blur_mm), shading, reference), math.sqrt(sq_err / (3 * n))
-
-
-def _best_light(background, presses, contacts, mm_per_px, shading, blurs_mm):
-    fits = [fit_light(background, presses, contacts, mm_per_px, b, shading) for b in blurs_mm]
-    return min(fits, key=lambda fit: fit[1])[0]
-
-
-def refine_contact(
-    light: LightModel, background: np.ndarray, press: Press, contact: Contact, mm_per_px: float
-) -> Contact:
-    """The contact near ``contact`` whose rendering best matches the press under ``light``
-    (Nelder–Mead on centre and radius, mean absolute error)."""
-    win = _window(contact, background.shape[:2], FIT_RADII + 1, int(4 * light.blur_mm / mm_per_px) + 8)
-    bg, real = background[win].astype(np.float32), press.image[win].astype(np.float32)
-    x0, y0 = win[1].start, win[0].start
-
-    def cost(p):
-        c = Contact(p[0] - x0, p[1] - y0, max(p[2], 2.0))
-        return float(np.mean(np.abs(render_press(light, bg, c, press.ball_radius_mm, mm_per_px) - real)))
-
-    res = minimize(
-        cost,
-        [contact.centre_x_px, contact.centre_y_px, contact.radius_px],
-        method="Nelder-Mead",
-        options={"xatol": 0.2, "fatol": 1e-3, "maxiter": 100},
-    )
-    return Contact(float(res.x[0]), float(res.x[1]), float(max(res.x[2], 2.0)))
+    order: OrderChoice
+    notes: list[str] = field(default_factory=list)  # bounds reached, presses to look at
+    seconds: float = 0.0
 
 
 def _check(background: np.ndarray, presses: list[Press], mm_per_px: float) -> None:
@@ -222,44 +99,309 @@ def _check(background: np.ndarray, presses: list[Press], mm_per_px: float) -> No
             raise CalibrationError(f"{name}: ball_radius_mm must be a finite number > 0, got {p.ball_radius_mm}")
 
 
+def provisional_profile(background: np.ndarray, mm_per_px: float, gel: Elastomer, light: LightModel):
+    """A profile of the frames as they are (their size and scale, the given gel) with ``light``:
+    what the calibration renders presses through."""
+    from sensor_sim.profile import SensorProfile
+
+    h, w = background.shape[:2]
+    return SensorProfile(
+        name="calibrating",
+        source="",
+        width_px=w,
+        height_px=h,
+        mm_per_px=mm_per_px,
+        gel_thickness_mm=gel.thickness_mm,
+        gel_E_MPa=gel.E_MPa,
+        noise=SensorNoise((0.0, 0.0, 0.0)),
+        light=light,
+        background=background,
+    )
+
+
+class _Fitter:
+    """The state of one calibration: the frames, a renderer per ball size, the contacts."""
+
+    def __init__(self, background: np.ndarray, presses: list[Press], mm_per_px: float, gel: Elastomer, shading: str):
+        from sensor_sim.press_render import PressRender
+
+        self.background = background
+        self.bg = background.astype(np.float32)
+        self.presses = presses
+        self.mm = mm_per_px
+        self.gel = gel
+        self.shading = shading
+        h, w = background.shape[:2]
+        self.position_scale_mm = 0.5 * max(h, w) * mm_per_px
+        mean = self.bg.reshape(-1, 3).mean(axis=0)
+        self.reference = (float(mean[0]), float(mean[1]), float(mean[2]))
+        zero = LightModel(np.zeros((3, TABLE_BINS, TABLE_BINS), np.float32), 0.0, shading, self.reference)
+        profile = provisional_profile(background, mm_per_px, gel, zero)
+        self.render = {r: PressRender(profile, sphere(2 * r)) for r in sorted({p.ball_radius_mm for p in presses})}
+        self.shade = self.bg / np.asarray(self.reference, np.float32) if shading == "multiplicative" else None
+        self.notes: list[str] = []
+
+    # -- contacts -------------------------------------------------------------------------------
+    def pose(self, p: Press, c: Contact) -> Pose:
+        return self.render[p.ball_radius_mm].pose_of_pixel(c.centre_x_px, c.centre_y_px, -float(c.depth_mm or 0.0))
+
+    def max_depth(self, p: Press) -> float:
+        limit = self.gel.thickness_mm if math.isfinite(self.gel.thickness_mm) else p.ball_radius_mm
+        return 0.98 * min(p.ball_radius_mm, limit)
+
+    def contact_radius_px(self, p: Press, c: Contact) -> float:
+        result = self.render[p.ball_radius_mm].solve(self.pose(p, c), fields=frozenset())
+        area = result.normal.contact_area_mm2 if result.normal is not None else 0.0
+        return math.sqrt(area / math.pi) / self.mm
+
+    def depth_for_radius(self, p: Press, c: Contact, radius_px: float) -> float:
+        """The depth at which the solver's contact radius is ``radius_px`` (bisection)."""
+        lo, hi = 0.0, self.max_depth(p)
+        for _ in range(24):
+            mid = 0.5 * (lo + hi)
+            if self.contact_radius_px(p, Contact(c.centre_x_px, c.centre_y_px, 0.0, mid)) < radius_px:
+                lo = mid
+            else:
+                hi = mid
+            if hi - lo < 1e-4:
+                break
+        return 0.5 * (lo + hi)
+
+    def start(self, p: Press) -> Contact:
+        if p.given:
+            assert p.centre_px is not None and p.radius_px is not None
+            c = Contact(float(p.centre_px[0]), float(p.centre_px[1]), float(p.radius_px))
+        else:
+            found = find_contact(self.background, p.image)
+            cx, cy = p.centre_px or (found.centre_x_px, found.centre_y_px)
+            c = Contact(float(cx), float(cy), float(p.radius_px or found.radius_px))
+        depth = p.depth_mm if (p.depth_mm is not None and not p.given) else self.depth_for_radius(p, c, c.radius_px)
+        depth = min(max(float(depth), 1e-3), self.max_depth(p))
+        return Contact(c.centre_x_px, c.centre_y_px, c.radius_px, depth)
+
+    # -- what the light is fitted on --------------------------------------------------------------
+    def window(self, c: Contact, radii: float, margin_px: int) -> tuple[slice, slice]:
+        h, w = self.bg.shape[:2]
+        half = int(radii * c.radius_px) + margin_px
+        x, y = int(round(c.centre_x_px)), int(round(c.centre_y_px))
+        return slice(max(y - half, 0), min(y + half, h)), slice(max(x - half, 0), min(x + half, w))
+
+    def samples(self, p: Press, c: Contact, sink: np.ndarray, blur_mm: float) -> PressSamples:
+        win = self.window(c, FIT_RADII, int(4 * blur_mm / self.mm) + 4)
+        probe = LightModel(np.zeros((3, 3, 3), np.float32), blur_mm)
+        s = sink[win]
+        gx, gy = probe.slopes(-s, self.mm)
+        rows, cols = np.mgrid[win[0], win[1]]
+        inside = np.hypot(cols - c.centre_x_px, rows - c.centre_y_px) < FIT_RADII * c.radius_px
+        sub = np.zeros_like(inside)
+        sub[::SAMPLE_STEP, ::SAMPLE_STEP] = True
+        inside &= sub
+        idx, wt = normal_lookup(gx[inside], gy[inside], TABLE_BINS)
+        h, w = self.bg.shape[:2]
+        x = (cols[inside] - (w - 1) / 2) * self.mm / self.position_scale_mm
+        y = (rows[inside] - (h - 1) / 2) * self.mm / self.position_scale_mm
+        bg = self.bg[win][inside]
+        shade = self.shade[win][inside] if self.shade is not None else np.ones_like(bg)
+        target = p.image[win].astype(np.float32)[inside] - bg
+        near = np.hypot(cols[inside] - c.centre_x_px, rows[inside] - c.centre_y_px) < NEAR_RADII * c.radius_px
+        return PressSamples(idx, wt.astype(np.float64), x, y, s[inside].astype(np.float64), shade, target, near)
+
+    def light(self, contacts: list[Contact], sinks: list[np.ndarray], blur_mm: float, order: OrderChoice) -> LightModel:
+        samples = [self.samples(p, c, s, blur_mm) for p, c, s in zip(self.presses, contacts, sinks)]
+        terms = fit_light_terms(samples, TABLE_BINS, order.order, order.position_ridge)
+        return LightModel(
+            terms.table.astype(np.float32),
+            float(blur_mm),
+            self.shading,
+            self.reference,
+            position_bgr=None if terms.position is None else terms.position.astype(np.float32),
+            sink_bgr=terms.sink.astype(np.float32),
+            position_scale_mm=self.position_scale_mm,
+            position_range=self.position_range(contacts),
+        )
+
+    def blur(self, contacts: list[Contact], sinks: list[np.ndarray]) -> float:
+        """The optical blur with the smallest leave-one-press-out absolute error (table and sink terms;
+        one press: in-sample), by golden-section search over [0, BLUR_MAX_MM]."""
+
+        def rms(blur_mm: float) -> float:
+            samples = [self.samples(p, c, s, blur_mm) for p, c, s in zip(self.presses, contacts, sinks)]
+            return held_out_mae(samples, TABLE_BINS)
+
+        ratio = (math.sqrt(5) - 1) / 2
+        lo, hi = 0.0, BLUR_MAX_MM
+        a, b = hi - ratio * (hi - lo), lo + ratio * (hi - lo)
+        fa, fb = rms(a), rms(b)
+        for _ in range(BLUR_STEPS):
+            if fa <= fb:
+                hi, b, fb = b, a, fa
+                a = hi - ratio * (hi - lo)
+                fa = rms(a)
+            else:
+                lo, a, fa = a, b, fb
+                b = lo + ratio * (hi - lo)
+                fb = rms(b)
+        best = round(a if fa <= fb else b, 3)
+        edges = {0.0: rms(0.0), BLUR_MAX_MM: rms(BLUR_MAX_MM)}
+        edge = min(edges, key=lambda k: edges[k])
+        if edges[edge] < min(fa, fb):
+            best = edge
+        if best in (0.0, BLUR_MAX_MM) or best <= 0.01 or best >= BLUR_MAX_MM - 0.01:
+            side = "lower" if best < BLUR_MAX_MM / 2 else "upper"
+            self.notes.append(
+                f"blur {best:g} mm is at the {side} end of its range [0, {BLUR_MAX_MM:g}] mm: "
+                + (
+                    "the edges are as sharp as the mechanics grid draws them"
+                    if side == "lower"
+                    else "the frames are blurrier than the range allows: check --mm-per-px and the focus"
+                )
+            )
+        return best
+
+    def spread(self, contacts: list[Contact]) -> bool:
+        """Whether the presses span enough of the field for position terms (MIN_POSITION_PRESSES or
+        more, their centres over at least MIN_SPAN of the frame's width and of its height); if not,
+        a note says so and the light is the same everywhere but for the background's shading."""
+        h, w = self.bg.shape[:2]
+        xs = [c.centre_x_px for c in contacts]
+        ys = [c.centre_y_px for c in contacts]
+        span_x, span_y = (max(xs) - min(xs)) / w, (max(ys) - min(ys)) / h
+        if len(contacts) >= MIN_POSITION_PRESSES and span_x >= MIN_SPAN and span_y >= MIN_SPAN:
+            return True
+        self.notes.append(
+            f"the presses span {span_x:.0%} of the frame's width and {span_y:.0%} of its height "
+            f"({len(contacts)} presses): the light's change across the field needs {MIN_POSITION_PRESSES} or more "
+            f"spanning {MIN_SPAN:.0%} of both, so it is taken as the same everywhere (shaded by the background)"
+        )
+        return False
+
+    def position_range(self, contacts: list[Contact]) -> tuple[float, float, float, float]:
+        """(x̃ low, x̃ high, ỹ low, ỹ high) the presses covered (centres ± contact radii)."""
+        h, w = self.bg.shape[:2]
+        k = self.mm / self.position_scale_mm
+        xs = [(c.centre_x_px + sign * c.radius_px - (w - 1) / 2) * k for c in contacts for sign in (-1, 1)]
+        ys = [(c.centre_y_px + sign * c.radius_px - (h - 1) / 2) * k for c in contacts for sign in (-1, 1)]
+        return (min(xs), max(xs), min(ys), max(ys))
+
+    def sinks(self, contacts: list[Contact]) -> list[np.ndarray]:
+        return [self.render[p.ball_radius_mm].sink_mm(self.pose(p, c)) for p, c in zip(self.presses, contacts)]
+
+    # -- refinement under a light ---------------------------------------------------------------
+    def refine(self, light: LightModel, p: Press, c: Contact) -> Contact:
+        """The centre and depth whose rendered press best matches ``p`` under ``light``: Gauss–Newton
+        with finite differences on a window, robust (L1-like) weights."""
+        from sensor_sim.light import FramePlanes
+
+        h, w = self.bg.shape[:2]
+        planes = self._planes(light)
+        win = self.window(c, FIT_RADII + 0.5, int(4 * light.blur_mm / self.mm) + 8)
+        real = p.image[win].astype(np.float32)[::SAMPLE_STEP, ::SAMPLE_STEP]
+        bg = self.bg[win][::SAMPLE_STEP, ::SAMPLE_STEP]
+
+        def crop(a):
+            return None if a is None else a[:, win[0], win[1]]
+
+        local = FramePlanes(crop(planes.scale), crop(planes.x), crop(planes.y), planes.position, crop(planes.sink))
+
+        def sink_at(theta: np.ndarray) -> np.ndarray:
+            cc = Contact(theta[0], theta[1], c.radius_px, theta[2])
+            return self.render[p.ball_radius_mm].sink_mm(self.pose(p, cc))[win]
+
+        def residual(sink: np.ndarray) -> np.ndarray:
+            gx, gy = light.slopes(-sink, self.mm)
+            change = light.change_frame(gx, gy, sink, local)
+            rendered = bg + np.moveaxis(change, 0, -1)[::SAMPLE_STEP, ::SAMPLE_STEP]
+            return (rendered - real).ravel()
+
+        def moved(sink: np.ndarray, dx: float, dy: float) -> np.ndarray:
+            """The same press moved by (dx, dy) px: the gel is the same everywhere, so its sink moves
+            with it (a solve saved per derivative)."""
+            shift = np.array([[1.0, 0.0, dx], [0.0, 1.0, dy]])
+            return cv2.warpAffine(sink, shift, sink.shape[::-1], flags=cv2.INTER_CUBIC, borderMode=cv2.BORDER_REPLICATE)
+
+        theta = np.array([c.centre_x_px, c.centre_y_px, float(c.depth_mm or 0.0)])
+        top = self.max_depth(p)
+        sink = sink_at(theta)
+        r = residual(sink)
+        for _ in range(REFINE_ITERATIONS):
+            deeper = theta + np.array([0.0, 0.0, DEPTH_STEP_MM])
+            J = np.stack(
+                [
+                    (residual(moved(sink, CENTRE_STEP_PX, 0.0)) - r) / CENTRE_STEP_PX,
+                    (residual(moved(sink, 0.0, CENTRE_STEP_PX)) - r) / CENTRE_STEP_PX,
+                    (residual(sink_at(deeper)) - r) / DEPTH_STEP_MM,
+                ],
+                axis=1,
+            )
+            weight = 1.0 / np.maximum(np.abs(r), 2.0)  # robust: a blemish on the gel pulls no harder than noise
+            JW = J * weight[:, None]
+            delta = np.linalg.lstsq(JW.T @ J + 1e-6 * np.eye(3), -JW.T @ r, rcond=None)[0]
+            delta = np.clip(delta, [-3.0, -3.0, -0.1], [3.0, 3.0, 0.1])  # trust region: px, px, mm
+            trial = theta + delta
+            trial[2] = min(max(trial[2], 1e-3), top)
+            sink_trial = sink_at(trial)
+            r_trial = residual(sink_trial)
+            if np.abs(r_trial).mean() > np.abs(r).mean():
+                break
+            theta, r, sink = trial, r_trial, sink_trial
+            if abs(delta[0]) < 0.05 and abs(delta[1]) < 0.05 and abs(delta[2]) < 1e-3:
+                break
+        depth = float(theta[2])
+        if depth >= top - 1e-6:
+            self.notes.append(
+                f"{p.name or 'a press'}: the fitted depth reached its limit ({top:.2f} mm: the ball's radius or "
+                "the gel's thickness): check --ball-radius-mm and --gel-thickness-mm"
+            )
+        refined = Contact(float(theta[0]), float(theta[1]), c.radius_px, depth)
+        return Contact(refined.centre_x_px, refined.centre_y_px, self.contact_radius_px(p, refined), depth)
+
+    def _planes(self, light: LightModel):
+        h, w = self.bg.shape[:2]
+        return light.frame_planes(self.bg, w * self.mm, h * self.mm)
+
+
 def fit_optics(
     background: np.ndarray,
     presses: list[Press],
     mm_per_px: float,
     *,
+    gel: Elastomer | None = None,
     shading: str = "multiplicative",
-    blurs_mm: tuple[float, ...] = BLURS_MM,
     refine: bool = True,
 ) -> CalibrationResult:
-    """Fit a LightModel to ball presses over a no-contact ``background`` (BGR, H×W×3).
-
-    Contacts not given are found automatically, then refined by rendering (``refine``).
-    Raises CalibrationError (one line naming the press) for unusable input.
-    """
+    """Fit a LightModel to ball presses over a no-contact ``background`` (BGR, H×W×3) at
+    ``mm_per_px``, the presses rendered on ``gel`` (default: the simulator's 3 mm gel).
+    Raises CalibrationError (one line naming the press) for unusable input."""
+    t0 = time.perf_counter()
     _check(background, presses, mm_per_px)
-    contacts: list[Contact] = []
-    for p in presses:
-        if p.centre_px and p.radius_px:  # given in full: nothing to find
-            contacts.append(Contact(float(p.centre_px[0]), float(p.centre_px[1]), float(p.radius_px)))
-            continue
-        found = find_contact(background, p.image)
-        if p.depth_mm is not None and p.radius_px is None:
-            found = Contact(found.centre_x_px, found.centre_y_px, math.sqrt(p.ball_radius_mm * p.depth_mm) / mm_per_px)
-        cx, cy = p.centre_px or (found.centre_x_px, found.centre_y_px)
-        contacts.append(Contact(float(cx), float(cy), float(p.radius_px or found.radius_px)))
-    light = _best_light(background, presses, contacts, mm_per_px, shading, blurs_mm)
-    if refine:
-        for _ in range(2):  # contacts under the current light, then the light for those contacts
-            contacts = [
-                c if (p.centre_px and p.radius_px) else refine_contact(light, background, p, c, mm_per_px)
-                for p, c in zip(presses, contacts)
-            ]
-            light = _best_light(background, presses, contacts, mm_per_px, shading, blurs_mm)
-    result = CalibrationResult(light, contacts)
-    for p, c in zip(presses, contacts):
-        err = np.abs(render_press(light, background, c, p.ball_radius_mm, mm_per_px) - p.image.astype(np.float32))
-        ys, xs = np.mgrid[0 : err.shape[0], 0 : err.shape[1]]
-        near = np.hypot(xs - c.centre_x_px, ys - c.centre_y_px) < 1.5 * c.radius_px
-        result.press_mae.append(float(err.mean()))
-        result.press_mae_near.append(float(err[near].mean()))
-    return result
+    fitter = _Fitter(background, presses, mm_per_px, gel or Elastomer(), shading)
+    contacts = [fitter.start(p) for p in presses]
+    sinks = fitter.sinks(contacts)
+    order0 = OrderChoice(0, 0.0, {})
+    if refine:  # the contacts under a first, sharp light: a blur chosen for misplaced rims would hide them
+        light = fitter.light(contacts, sinks, START_BLUR_MM, order0)
+        contacts = [c if p.given else fitter.refine(light, p, c) for p, c in zip(presses, contacts)]
+        sinks = fitter.sinks(contacts)
+    blur = fitter.blur(contacts, sinks)
+    if fitter.spread(contacts):
+        samples = [fitter.samples(p, c, s, blur) for p, c, s in zip(presses, contacts, sinks)]
+        order = choose_order(samples, TABLE_BINS)
+    else:
+        order = order0
+    light = fitter.light(contacts, sinks, blur, order)
+    for _ in range(FINAL_ROUNDS if refine else 0):
+        contacts = [c if p.given else fitter.refine(light, p, c) for p, c in zip(presses, contacts)]
+        sinks = fitter.sinks(contacts)
+        light = fitter.light(contacts, sinks, blur, order)
+    return CalibrationResult(light, contacts, order, fitter.notes, time.perf_counter() - t0)
+
+
+def locate_press(
+    background: np.ndarray, press: Press, mm_per_px: float, light: LightModel, *, gel: Elastomer | None = None
+) -> Contact:
+    """Where ``press`` is under a fitted ``light``: found from its frame, then refined by rendering
+    (what a rig knows from its pose; the optics bench scores held-out presses there)."""
+    _check(background, [press], mm_per_px)
+    fitter = _Fitter(background, [press], mm_per_px, gel or Elastomer(), light.shading)
+    start = fitter.start(press)
+    return start if press.given else fitter.refine(light, press, start)

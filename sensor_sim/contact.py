@@ -26,6 +26,18 @@ from sensor_sim.kernels import kernels_for
 from sensor_sim.normal_contact import NormalSolution, solve_normal
 from sensor_sim.tangential_contact import TangentialSolution, solve_tangential
 
+CELLS_PER_FEATURE = 2  # the fewest mechanics cells across an indenter's smallest feature
+
+
+class UnresolvedFeature(PhysicsInputError):
+    """An indenter whose smallest feature is under CELLS_PER_FEATURE mechanics cells: refused,
+    since the grid would not see it (a contact force of zero that is not one)."""
+
+
+def cells_to_resolve(indenter: Indenter, longer_side_mm: float) -> int:
+    """The fewest cells across ``longer_side_mm`` that put CELLS_PER_FEATURE across the feature."""
+    return math.ceil(CELLS_PER_FEATURE * longer_side_mm / indenter.smallest_feature_mm - 1e-9)
+
 
 @dataclass(frozen=True)
 class SensorGeometry:
@@ -54,6 +66,9 @@ class ContactResult:
     fields: dict[str, np.ndarray] = field(default_factory=dict)  # full sensor grid, mm
     solve_ms: float = 0.0
     backing: BackingLoad = NO_BACKING  # the window's share once the indenter reaches it
+    # pressed in with its axis on the pad, yet no cell centre under the face: the contact is
+    # narrower than a cell (the first micrometres of a press), its force below the grid's reach
+    sub_cell: bool = False
 
     @property
     def in_contact(self) -> bool:
@@ -109,6 +124,14 @@ class TactileContact:
         self.tangential_tol = tangential_tol
         ny, nx = self.geometry.shape
         dx = self.geometry.dx_mm
+        feature = indenter.smallest_feature_mm
+        if feature < CELLS_PER_FEATURE * dx:
+            longer = max(self.geometry.width_mm, self.geometry.height_mm)
+            raise UnresolvedFeature(
+                f"{indenter.name}: its smallest feature ({feature:g} mm) spans fewer than {CELLS_PER_FEATURE} "
+                f"mechanics cells of {dx:.3g} mm, so its contact would read as none: use at least "
+                f"{cells_to_resolve(indenter, longer)} cells across the {longer:g} mm pad, or a larger object"
+            )
         xs = (np.arange(nx) - (nx - 1) / 2) * dx
         ys = ((ny - 1) / 2 - np.arange(ny)) * dx  # row 0 is the top edge (+y), as in an image
         self.X, self.Y = np.meshgrid(xs, ys)
@@ -160,6 +183,8 @@ class TactileContact:
         h = self.indenter.separation_at(self.X, self.Y, pose.x_mm, pose.y_mm, pose.theta_deg)
         interference = h < d
         if not interference.any():
+            half_w, half_h = self.geometry.width_mm / 2, self.geometry.height_mm / 2
+            out.sub_cell = abs(pose.x_mm) <= half_w and abs(pose.y_mm) <= half_h
             out.solve_ms = (time.perf_counter() - t0) * 1e3
             return self.add_fields(out, fields)
         crop = self._crop(interference)

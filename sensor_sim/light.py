@@ -1,18 +1,29 @@
-"""The sensor's light model: colour change as a bounded function of the gel's surface normal.
+"""The sensor's light model: colour change as a bounded function of the gel's surface normal,
+of where on the gel it is, and of how far the gel is pressed in.
 
-Parameters only (what a sensor profile stores and the calibration fits); the renderer
-that turns mechanics fields into frames with them is ``sensor_sim.optics``.
+Per channel, at a place (x, y) of the frame with surface normal n and sink s (mm):
+
+    change = shade(x, y) · [T(n) + x̃·Tx(n) + ỹ·Ty(n) + s·(k + kx·x̃ + ky·ỹ)]
+
+T, Tx, Ty: smooth lookup tables over the normal (T(flat) = 0); x̃, ỹ: the position from the
+frame's centre over ``position_scale_mm`` (image axes, bounded over the frame); shade: the
+background's brightness relative to ``reference_bgr`` (multiplicative shading). Without the
+position and sink terms (``position_bgr``, ``sink_bgr`` None: profiles of format 1) it is the
+table alone, computed as before. Parameters only (what a sensor profile stores and the
+calibration fits); the renderer that turns mechanics fields into frames is ``sensor_sim.optics``.
 """
 
 from __future__ import annotations
 
 import functools
+import math
 from dataclasses import dataclass, field
 
 import cv2
 import numpy as np
 
 from common.sensors import SENSOR_KINDS
+from sensor_sim.noise import SensorNoise
 
 SHADINGS = ("multiplicative", "additive")
 # A camera's response flattens near its ends; frames stay in [1, 254] so a deep press
@@ -121,6 +132,37 @@ def _corner_cells(gx: np.ndarray, gy: np.ndarray, bins: int) -> tuple[np.ndarray
     return k, [a * b, fu * b, a * fv, np.multiply(fu, fv, out=fu)]
 
 
+@dataclass
+class FramePlanes:
+    """A renderer's constants for ``LightModel.change_frame`` (each (3, H, W) float32 or None):
+    the shading, the shading times x̃ and ỹ, the position tables per channel, and the sink's
+    change per mm (shading included)."""
+
+    scale: np.ndarray | None  # None: additive shading
+    x: np.ndarray | None = None
+    y: np.ndarray | None = None
+    position: list[list[np.ndarray]] | None = None
+    sink: np.ndarray | None = None
+
+
+def _lookup_planes(tables: list[np.ndarray], gx: np.ndarray, gy: np.ndarray, bins: int, exact: bool) -> np.ndarray:
+    """(len(tables), H, W): each (bins, bins) table looked up bilinearly at the normal of (gx, gy)."""
+    if not exact and gx.ndim == 2 and max(gx.shape) < REMAP_MAX_SIDE and remap_interpolates_exactly():
+        u, v = _table_coordinates(gx, gy, bins)
+        u, v = u.astype(np.float32, copy=False), v.astype(np.float32, copy=False)
+        return np.stack([cv2.remap(t, u, v, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE) for t in tables]).astype(
+            np.float32, copy=False
+        )
+    k, w = _corner_cells(gx, gy, bins)
+    out = np.empty((len(tables), *k.shape), np.float32)
+    for i, table in enumerate(tables):
+        flat = table.ravel()
+        acc = np.multiply(flat.take(k), w[0], out=out[i])
+        for j, offset in enumerate((1, bins, bins + 1), start=1):
+            acc += flat.take(k + offset) * w[j]
+    return out
+
+
 def _gradient(z: np.ndarray, step: np.float32) -> tuple[np.ndarray, np.ndarray]:
     """``np.gradient(z, step)`` of a 2-D float32 array, (d/drow, d/dcol): the same operations
     (central differences over ``2. * step`` inside, one-sided over ``step`` at the edges)
@@ -151,12 +193,21 @@ class LightModel:
     pixel relative to ``reference_bgr`` (the light reaching each place differs, and the
     background shows how much); "additive" adds the same change everywhere.
     ``blur_mm``: optical blur of the surface slopes (gel scattering, camera focus).
+    ``position_bgr`` (3, 2, N, N): per channel, the tables Tx and Ty (change per unit of x̃, ỹ);
+    ``sink_bgr`` (3, 3): per channel, the change per mm of sink: k, kx, ky;
+    ``position_scale_mm``: the length that makes x̃, ỹ (> 0 when either is given);
+    ``position_range``: (x̃ low, x̃ high, ỹ low, ỹ high) where the presses fitted them were: beyond
+    it the position terms stay at its edge (a light fitted in one region is not extrapolated).
     """
 
     table_bgr: np.ndarray
     blur_mm: float
     shading: str = "multiplicative"
     reference_bgr: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    position_bgr: np.ndarray | None = None
+    sink_bgr: np.ndarray | None = None
+    position_scale_mm: float = 0.0
+    position_range: tuple[float, float, float, float] = (-math.inf, math.inf, -math.inf, math.inf)
     _cells: np.ndarray = field(init=False, repr=False, compare=False)  # derived from table_bgr
     _planes: list[np.ndarray] = field(init=False, repr=False, compare=False)  # each channel's table
 
@@ -167,6 +218,7 @@ class LightModel:
         if not np.all(np.isfinite(table)) or np.abs(table).max() > 255:
             raise ValueError("table_bgr entries must be finite colour changes within ±255 grey levels")
         object.__setattr__(self, "table_bgr", table)
+        self._check_position_and_sink(table.shape[1])
         # Per channel and corner, each cell's corner value: row 4 * channel + corner (corners
         # at flat offsets 0, 1, bins, bins + 1), so one gather fetches all twelve.
         bins, flat = table.shape[1], table.reshape(3, -1)
@@ -183,9 +235,78 @@ class LightModel:
         if ref.shape != (3,) or not np.all(np.isfinite(ref)) or np.any(ref <= 0):
             raise ValueError(f"reference_bgr must be 3 finite numbers > 0, got {self.reference_bgr}")
 
+    def _check_position_and_sink(self, bins: int) -> None:
+        if self.position_bgr is not None:
+            pos = np.asarray(self.position_bgr, dtype=np.float32)
+            if pos.shape != (3, 2, bins, bins):
+                raise ValueError(f"position_bgr must be (3, 2, {bins}, {bins}) tables, got shape {pos.shape}")
+            if not np.all(np.isfinite(pos)) or np.abs(pos).max() > 255:
+                raise ValueError("position_bgr entries must be finite colour changes within ±255 grey levels")
+            object.__setattr__(self, "position_bgr", pos)
+        if self.sink_bgr is not None:
+            sink = np.asarray(self.sink_bgr, dtype=np.float32)
+            if sink.shape != (3, 3) or not np.all(np.isfinite(sink)) or np.abs(sink).max() > 1000:
+                raise ValueError("sink_bgr must be 3 × 3 finite changes per mm of sink within ±1000 grey levels")
+            object.__setattr__(self, "sink_bgr", sink)
+        positional = self.position_bgr is not None or (self.sink_bgr is not None and np.any(self.sink_bgr[:, 1:]))
+        scale = self.position_scale_mm
+        if positional and not (np.isfinite(scale) and 0 < scale <= 1000):
+            raise ValueError(f"position_scale_mm must be in (0, 1000] mm with position terms, got {scale}")
+        lo_x, hi_x, lo_y, hi_y = (float(v) for v in self.position_range)
+        if any(math.isnan(v) for v in (lo_x, hi_x, lo_y, hi_y)) or lo_x > hi_x or lo_y > hi_y:
+            raise ValueError(f"position_range must be x low <= x high, y low <= y high, got {self.position_range}")
+
     @property
     def bins(self) -> int:
         return self.table_bgr.shape[1]
+
+    @property
+    def extended(self) -> bool:
+        """Position or sink terms beside the table (a format 2 profile's light)."""
+        return self.position_bgr is not None or self.sink_bgr is not None
+
+    def frame_planes(self, background: np.ndarray, width_mm: float, height_mm: float) -> "FramePlanes":
+        """What ``change_frame`` multiplies for a frame over ``background`` (H, W, 3) spanning
+        ``width_mm`` × ``height_mm`` centred on the sensor: made once per renderer."""
+        h, w = background.shape[:2]
+        planes = FramePlanes(self.shade_scale(background))
+        if not self.extended:
+            return planes
+        scale = planes.scale if planes.scale is not None else np.ones((3, h, w), np.float32)
+        s = self.position_scale_mm or 1.0
+        xs = ((np.arange(w, dtype=np.float64) + 0.5) / w - 0.5) * (width_mm / s)
+        ys = ((np.arange(h, dtype=np.float64) + 0.5) / h - 0.5) * (height_mm / s)
+        lo_x, hi_x, lo_y, hi_y = self.position_range
+        x_tilde = np.broadcast_to(np.clip(xs, lo_x, hi_x)[None, :], (h, w)).astype(np.float32)
+        y_tilde = np.broadcast_to(np.clip(ys, lo_y, hi_y)[:, None], (h, w)).astype(np.float32)
+        if self.position_bgr is not None:
+            planes.x = np.ascontiguousarray(scale * x_tilde)
+            planes.y = np.ascontiguousarray(scale * y_tilde)
+            planes.position = [[np.ascontiguousarray(self.position_bgr[ch, k]) for k in range(2)] for ch in range(3)]
+        if self.sink_bgr is not None:
+            k = self.sink_bgr
+            per_mm = k[:, 0, None, None] + k[:, 1, None, None] * x_tilde + k[:, 2, None, None] * y_tilde
+            planes.sink = np.ascontiguousarray((scale * per_mm).astype(np.float32))
+        return planes
+
+    def change_frame(
+        self, gx: np.ndarray, gy: np.ndarray, sink_mm: np.ndarray | None, planes: "FramePlanes", *, exact=False
+    ) -> np.ndarray:
+        """(3, H, W) colour change of a frame: slopes (gx, gy), the sink (mm, into the gel) and the
+        frame's ``planes``. Without position and sink terms: ``change_planar`` itself (the same bits)."""
+        out = self.change_planar(gx, gy, planes.scale, exact=exact)
+        if not self.extended:
+            return out
+        if planes.position is not None:
+            for k, weight in enumerate((planes.x, planes.y)):
+                tables = [planes.position[ch][k] for ch in range(3)]
+                looked = _lookup_planes(tables, gx, gy, self.bins, exact)
+                looked *= weight
+                out += looked
+        if planes.sink is not None and sink_mm is not None:
+            out += planes.sink * sink_mm.astype(np.float32, copy=False)
+        np.clip(out, -255.0, 255.0, out=out)
+        return out
 
     def slope_gain(self) -> float:
         """Mean colour change per unit slope at the flat gel (grey levels): small-tilt response."""
@@ -260,7 +381,8 @@ class OpticsSpec:
     kind: str = "rgb"
     height_px: int = 256
     width_px: int = 256
-    noise_std: float = 1.0  # grey levels, per pixel and channel
+    noise_std: float = 1.0  # grey levels, per pixel and channel, independent (format-1 profiles)
+    noise: SensorNoise | None = None  # the camera's noise as a profile of format 2 measures it (overrides noise_std)
     marker_pitch_mm: float = 0.7  # 20 × 20 markers on a 14 mm pad; the metric uses the central 18 × 18
     marker_radius_mm: float = 0.17
     marker_darkness: float = 0.8
@@ -273,3 +395,9 @@ class OpticsSpec:
     @property
     def has_markers(self) -> bool:
         return self.kind.endswith("_markers")
+
+    def sensor_noise(self) -> SensorNoise:
+        """The noise frames get: ``noise``, else independent ``noise_std`` at the frame's pixels."""
+        if self.noise is not None:
+            return self.noise
+        return SensorNoise((self.noise_std,) * 3, native=False)

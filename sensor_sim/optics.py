@@ -55,6 +55,7 @@ class Renderer:
         self.mm_per_px = self.geometry.width_mm / w
         if background is None and self.spec.kind != "white_markers":
             background = profile.background
+        native_hw = (h, w) if background is None else background.shape[:2]  # the camera's own pixels
         if background is not None:
             self.background = cv2.resize(background, (w, h), interpolation=cv2.INTER_AREA).astype(np.float32)
         else:
@@ -66,16 +67,15 @@ class Renderer:
         # small-tilt gain as the coloured response's mean magnitude, and never below black.
         self.white_darkening = min(0.9, self.light.slope_gain() / 200.0)
         self._background_planes = np.ascontiguousarray(np.moveaxis(self.background, -1, 0))
-        self._shade_scale = self.light.shade_scale(self.background)  # (3, H, W) or None
+        # the shading, and the position and sink planes of a profile of format 2: once per renderer
+        self._light_planes = self.light.frame_planes(self.background, self.geometry.width_mm, self.geometry.height_mm)
+        self._shade_scale = self._light_planes.scale  # (3, H, W) or None
         self._rng = np.random.default_rng(seed)
         # Sensor noise from a bank of precomputed fields, shifted at random per frame:
         # statistically the same per pixel, ~10x cheaper than fresh Gaussian draws.
         self._noise_planes: np.ndarray | None = None
-        self._noise = (
-            self._rng.normal(0.0, self.spec.noise_std, (4, h, w, 3)).astype(np.float32)
-            if self.spec.noise_std > 0
-            else None
-        )
+        noise = self.spec.sensor_noise()
+        self._noise = None if noise.silent else noise.bank(self._rng, 4, (h, w), native_hw)
         pitch = self.spec.marker_pitch_mm
         n_x = int(self.geometry.width_mm / pitch)
         n_y = int(self.geometry.height_mm / pitch)
@@ -106,9 +106,26 @@ class Renderer:
         return frozenset({"uz", "uxy"}) if self.spec.has_markers else frozenset({"uz"})
 
     def _on_image(self, field: np.ndarray) -> np.ndarray:
-        return cv2.resize(
-            field.astype(np.float32), (self.spec.width_px, self.spec.height_px), interpolation=cv2.INTER_CUBIC
+        """A mechanics-grid field on the frame's pixels, by position: pixel column c is at
+        x = (c - (W - 1) / 2) · mm_per_px, grid column i at (i - (nx - 1) / 2) · dx. Where the grid
+        spans the frame exactly (square pads) that is ``cv2.resize``'s own mapping."""
+        w, h = self.spec.width_px, self.spec.height_px
+        field = field.astype(np.float32)
+        ny, nx = field.shape
+        dx = self.geometry.dx_mm
+        if abs(nx * dx - self.geometry.width_mm) < 1e-9 and abs(ny * dx - self.geometry.height_mm) < 1e-9:
+            return cv2.resize(field, (w, h), interpolation=cv2.INTER_CUBIC)
+        step = self.mm_per_px / dx  # grid cells per pixel
+        to_grid = np.array(
+            [[step, 0.0, (nx - 1) / 2 - step * (w - 1) / 2], [0.0, step, (ny - 1) / 2 - step * (h - 1) / 2]]
         )
+        return cv2.warpAffine(
+            field, to_grid, (w, h), flags=cv2.INTER_CUBIC | cv2.WARP_INVERSE_MAP, borderMode=cv2.BORDER_REPLICATE
+        )
+
+    def sink_on_frame(self, uz_mm: np.ndarray) -> np.ndarray:
+        """(H, W) float32 sink (mm, into the gel) of a mechanics-grid field on the frame's pixels."""
+        return self._on_image(uz_mm)
 
     def slope_change(self, uz_mm: np.ndarray) -> np.ndarray:
         """(H, W, 3) colour change for the surface sink ``uz_mm`` (mechanics grid)."""
@@ -117,6 +134,7 @@ class Renderer:
     def _change_planes(self, uz_mm: np.ndarray) -> np.ndarray:
         """``slope_change`` as (3, H, W) planes."""
         z = self._on_image(uz_mm)
+        sink = z.copy() if self.light.extended else None
         gx, gy = self.light.slopes(np.negative(z, out=z), self.mm_per_px)  # the sink as a height
         if self.spec.kind == "white_markers":
             gx2, gy2 = gx * gx, gy * gy
@@ -127,7 +145,7 @@ class Renderer:
             tilt /= np.sqrt(den, out=den)  # sin of the tilt, in [0, 1)
             tilt = -self.white_darkening * tilt
             return np.multiply(tilt, self._background_planes)
-        return self.light.change_planar(gx, gy, self._shade_scale)
+        return self.light.change_frame(gx, gy, sink, self._light_planes)
 
     def _press_planes(self, uz_mm: np.ndarray) -> np.ndarray:
         """(3, H, W) background plus the colour change for ``uz_mm``; the last one is kept."""

@@ -5,9 +5,15 @@
     default_profile()                            # the shipped GelSight Mini profile
 
 It holds the frame size, the scale (mm per pixel), the gel (thickness, modulus), the
-optics (``LightModel``: normal lookup table, blur, shading), the marker layout for
-marker kinds and the sensor noise. Every value is checked on load: a missing key,
-a NaN or infinity, or a value out of range is a ``ProfileError`` naming the file and key.
+optics (``LightModel``: normal lookup tables, position and sink terms, blur, shading), the
+marker layout for marker kinds and the camera's noise (``SensorNoise``). Every value is
+checked on load: a missing key, a NaN or infinity, or a value out of range is a
+``ProfileError`` naming the file and key.
+
+Formats: ``[sensor] format = 2`` (written since the position-dependent light: position and
+sink terms, correlated noise in ``[noise]``); a file without ``format`` is a profile of
+format 1 (one normal table, ``[sensor] noise_std`` of independent noise at the frame's
+pixels), read as exactly what it says. Any other format is refused in one line.
 
 A run recorded with a profile stores ``profile.record()`` (name, content hash, file);
 ``profile_from_record`` finds the same profile again (by hash, never by name alone).
@@ -28,8 +34,13 @@ import numpy as np
 from sensor_sim.contact import SensorGeometry
 from sensor_sim.elastomer import Elastomer
 from sensor_sim.light import SHADINGS, LightModel, OpticsSpec
+from sensor_sim.noise import SensorNoise
 
 DEFAULT_PROFILE = Path(__file__).parent / "data" / "gelsight_mini.toml"
+# Shipped profiles that runs may record besides the default: the default before the
+# position-dependent light (format 1), so that runs simulated with it find it again.
+SHIPPED_PROFILES = (DEFAULT_PROFILE, Path(__file__).parent / "data" / "gelsight_mini_format1.toml")
+FORMATS = (1, 2)
 
 
 class ProfileError(ValueError):
@@ -45,13 +56,22 @@ class SensorProfile:
     mm_per_px: float
     gel_thickness_mm: float
     gel_E_MPa: float
-    noise_std: float  # grey levels per pixel and channel
+    noise: SensorNoise  # the camera's noise (format 1: independent, at the frame's pixels)
     light: LightModel
     background: np.ndarray  # BGR uint8 no-contact frame, the frame's aspect ratio, any resolution
     marker_pitch_mm: float = 0.7
     marker_radius_mm: float = 0.17
     marker_darkness: float = 0.8
     path: str = ""  # the TOML it was loaded from ("" when built in memory)
+    format: int = 2  # the file format it was read from or will be written in
+
+    @property
+    def width_mm(self) -> float:
+        return self.width_px * self.mm_per_px
+
+    @property
+    def height_mm(self) -> float:
+        return self.height_px * self.mm_per_px
 
     def geometry(self, cells: int = 128) -> SensorGeometry:
         """The gel pad the camera sees; ``cells`` mechanics cells across its longer side."""
@@ -74,7 +94,7 @@ class SensorProfile:
             self.mm_per_px,
             self.gel_thickness_mm,
             self.gel_E_MPa,
-            self.noise_std,
+            self.noise.std_bgr[0],
             self.marker_pitch_mm,
             self.marker_radius_mm,
             self.marker_darkness,
@@ -85,6 +105,18 @@ class SensorProfile:
         h.update(np.ascontiguousarray(self.light.table_bgr, dtype=np.float32).tobytes())
         bg = np.ascontiguousarray(self.background, dtype=np.uint8)
         h.update(repr(bg.shape).encode() + bg.tobytes())
+        if self.format >= 2:  # format 1's hash is what runs recorded before format 2: unchanged
+            n, light = self.noise, self.light
+            extra = (
+                *n.std_bgr,
+                n.correlation_px,
+                *n.channel_correlation,
+                light.position_scale_mm,
+                *_finite_range(light.position_range),
+            )
+            h.update(f"|format 2|{'|'.join(repr(float(v)) for v in extra)}".encode())
+            for part in (light.position_bgr, light.sink_bgr):
+                h.update(b"-" if part is None else np.ascontiguousarray(part, dtype=np.float32).tobytes())
         return h.hexdigest()
 
     def record(self) -> str:
@@ -96,19 +128,19 @@ class SensorProfile:
             kind=kind,
             height_px=self.height_px,
             width_px=self.width_px,
-            noise_std=self.noise_std,
+            noise_std=self.noise.std_bgr[0],
+            noise=None if self.noise.independent else self.noise,
             marker_pitch_mm=self.marker_pitch_mm,
             marker_radius_mm=self.marker_radius_mm,
             marker_darkness=self.marker_darkness,
         )
 
 
-# (section, key, low, high): the ranges a profile's numbers must lie in.
+# (section, key, low, high): the ranges a profile's numbers must lie in (both formats).
 NUMBERS = (
     ("sensor", "width_px", 16, 4096),
     ("sensor", "height_px", 16, 4096),
     ("sensor", "mm_per_px", 1e-4, 1.0),
-    ("sensor", "noise_std", 0.0, 50.0),
     ("gel", "thickness_mm", 0.05, 50.0),
     ("gel", "E_MPa", 1e-3, 1e3),
     ("optics", "blur_mm", 0.0, 5.0),
@@ -138,17 +170,69 @@ def _number(path: Path, data: dict, section: str, key: str, low: float, high: fl
     return value
 
 
-def _table(path: Path, data: dict, name: str, bins: int) -> np.ndarray:
-    value = _get(path, data, "optics", name)
+def _array(path: Path, data: dict, section: str, name: str, shape: tuple[int, ...], limit: float, what: str):
+    value = _get(path, data, section, name)
+    size = "×".join(str(n) for n in shape)
     try:
-        table = np.asarray(value, dtype=np.float64)
+        array = np.asarray(value, dtype=np.float64)
     except (TypeError, ValueError):
-        raise ProfileError(f"{path}: [optics] {name} must be a {bins}×{bins} array of numbers") from None
-    if table.shape != (bins, bins):
-        raise ProfileError(f"{path}: [optics] {name} must be {bins}×{bins} (table_bins), got shape {table.shape}")
-    if not np.all(np.isfinite(table)) or np.abs(table).max() > 255:
-        raise ProfileError(f"{path}: [optics] {name} entries must be finite and within ±255 grey levels")
-    return table
+        raise ProfileError(f"{path}: [{section}] {name} must be a {size} array of numbers") from None
+    if array.shape != shape:
+        raise ProfileError(f"{path}: [{section}] {name} must be {size}{what}, got shape {array.shape}")
+    if not np.all(np.isfinite(array)) or np.abs(array).max() > limit:
+        raise ProfileError(f"{path}: [{section}] {name} entries must be finite and within ±{limit:g}")
+    return array
+
+
+def _table(path: Path, data: dict, name: str, bins: int) -> np.ndarray:
+    return _array(path, data, "optics", name, (bins, bins), 255, " (table_bins)")
+
+
+def _format(path: Path, data: dict) -> int:
+    fmt = data.get("sensor", {}).get("format", 1) if isinstance(data.get("sensor"), dict) else 1
+    if isinstance(fmt, bool) or fmt not in FORMATS:
+        raise ProfileError(
+            f"{path}: [sensor] format {fmt!r}: this version reads profile formats "
+            f"{', '.join(str(f) for f in FORMATS)} (no format key: 1)"
+        )
+    return int(fmt)
+
+
+def _noise(path: Path, data: dict, fmt: int) -> SensorNoise:
+    if fmt == 1:
+        std = _number(path, data, "sensor", "noise_std", 0.0, 50.0)
+        return SensorNoise((float(std),) * 3, native=False)
+    std = _array(path, data, "noise", "std_bgr", (3,), 50, " (grey levels, b g r)")
+    if np.any(std < 0):
+        raise ProfileError(f"{path}: [noise] std_bgr must be 3 numbers >= 0, got {std.tolist()}")
+    corr_px = _number(path, data, "noise", "correlation_px", 0.0, 8.0)
+    rho = _array(path, data, "noise", "channel_correlation", (3,), 0.99, " (b-g, b-r, g-r)")
+    try:
+        return SensorNoise(tuple(float(v) for v in std), float(corr_px), tuple(float(v) for v in rho))  # type: ignore[arg-type]
+    except ValueError as exc:
+        raise ProfileError(f"{path}: [noise] {exc}") from None
+
+
+def _position_and_sink(path: Path, data: dict, fmt: int, bins: int) -> dict:
+    """The light's position and sink terms (format 2; none in format 1)."""
+    if fmt == 1:
+        return {}
+    order = _number(path, data, "optics", "position_order", 0, 1)
+    if not float(order).is_integer():
+        raise ProfileError(f"{path}: [optics] position_order must be 0 or 1, got {order!r}")
+    scale = _number(path, data, "optics", "position_scale_mm", 1e-3, 1000.0)
+    sink = _array(path, data, "optics", "sink_bgr", (3, 3), 1000, " (per channel b g r: k, kx, ky)")
+    bounds = _array(path, data, "optics", "position_range", (4,), 1e6, " (x~ low, x~ high, y~ low, y~ high)")
+    terms = {
+        "sink_bgr": sink.astype(np.float32),
+        "position_scale_mm": float(scale),
+        "position_range": tuple(float(v) for v in bounds),
+    }
+    if order == 1:
+        terms["position_bgr"] = np.stack(
+            [np.stack([_table(path, data, f"position_{axis}_{c}", bins) for axis in "xy"]) for c in "bgr"]
+        ).astype(np.float32)
+    return terms
 
 
 def load_profile(path: str | Path) -> SensorProfile:
@@ -160,6 +244,7 @@ def load_profile(path: str | Path) -> SensorProfile:
         raise ProfileError(f"{path}: cannot read the profile ({exc.strerror})") from None
     except tomllib.TOMLDecodeError as exc:
         raise ProfileError(f"{path}: not valid TOML ({exc})") from None
+    fmt = _format(path, data)
     n = {f"{s}.{k}": _number(path, data, s, k, lo, hi) for s, k, lo, hi in NUMBERS}
     for s, k in (("sensor", "width_px"), ("sensor", "height_px")):
         if not float(n[f"{s}.{k}"]).is_integer():
@@ -191,12 +276,17 @@ def load_profile(path: str | Path) -> SensorProfile:
             f"{path}: [sensor] background {bg_name!r} is {background.shape[1]}x{background.shape[0]}, "
             f"not the frame's aspect ratio {int(n['sensor.width_px'])}x{int(n['sensor.height_px'])}"
         )
-    light = LightModel(
-        table.astype(np.float32),
-        float(n["optics.blur_mm"]),
-        shading,
-        (float(reference[0]), float(reference[1]), float(reference[2])),
-    )
+    try:
+        light = LightModel(
+            table.astype(np.float32),
+            float(n["optics.blur_mm"]),
+            shading,
+            (float(reference[0]), float(reference[1]), float(reference[2])),
+            **_position_and_sink(path, data, fmt, int(bins)),
+        )
+    except ValueError as exc:
+        raise ProfileError(f"{path}: [optics] {exc}") from None
+    noise = _noise(path, data, fmt)
     return SensorProfile(
         name=str(_get(path, data, "sensor", "name")),
         source=str(data["sensor"].get("source", "")),
@@ -205,13 +295,14 @@ def load_profile(path: str | Path) -> SensorProfile:
         mm_per_px=float(n["sensor.mm_per_px"]),
         gel_thickness_mm=float(n["gel.thickness_mm"]),
         gel_E_MPa=float(n["gel.E_MPa"]),
-        noise_std=float(n["sensor.noise_std"]),
+        noise=noise,
         light=light,
         background=background,
         marker_pitch_mm=float(n["markers.pitch_mm"]),
         marker_radius_mm=float(n["markers.radius_mm"]),
         marker_darkness=float(n["markers.darkness"]),
         path=str(path.resolve()),
+        format=fmt,
     )
 
 
@@ -219,24 +310,66 @@ def _toml_rows(table: np.ndarray) -> str:
     return "[\n" + "".join("  [" + ", ".join(f"{v:.3f}" for v in row) + "],\n" for row in table) + "]"
 
 
+def _finite_range(bounds) -> tuple[float, ...]:
+    """TOML has no infinity a reader accepts here: an open range is written as ±1e6 (far beyond any frame)."""
+    return tuple(max(-1e6, min(1e6, float(v))) for v in bounds)
+
+
+def _toml_numbers(values) -> str:
+    return "[" + ", ".join(f"{float(v)!r}" for v in values) + "]"
+
+
 def save_profile(profile: SensorProfile, path: str | Path) -> Path:
-    """Write ``path`` (TOML) and its background PNG beside it (same stem); returns the TOML path."""
+    """Write ``path`` (TOML, in the profile's format) and its background PNG beside it (same stem);
+    returns the TOML path."""
     path = Path(path)
     bg_path = path.with_suffix(".png")
     if not cv2.imwrite(str(bg_path), np.asarray(profile.background, dtype=np.uint8)):
         raise ProfileError(f"{bg_path}: cannot write the background image")
-    light = profile.light
+    light, noise = profile.light, profile.noise
+    if profile.format == 1 and (light.extended or not noise.independent):
+        raise ProfileError(f"{path}: a profile of format 1 holds no position or sink terms and no correlated noise")
     tables = "\n".join(f"table_{c} = {_toml_rows(light.table_bgr[i])}" for i, c in enumerate("bgr"))
-    text = f'''# Sensor profile (sensor_sim.profile): one tactile sensor's frame, gel, optics and markers.
+    if profile.format == 1:
+        noise_line, noise_section, terms = (
+            f"noise_std = {noise.std_bgr[0]!r}  # grey levels per pixel and channel\n",
+            "",
+            "",
+        )
+    else:
+        noise_line = ""
+        noise_section = f"""
+[noise]  # the camera's noise, at the background's pixels (the camera's own)
+std_bgr = {_toml_numbers(noise.std_bgr)}  # grey levels per pixel
+correlation_px = {float(noise.correlation_px)!r}  # sigma of its spatial correlation, background pixels
+channel_correlation = {_toml_numbers(noise.channel_correlation)}  # b-g, b-r, g-r
+"""
+        sink = light.sink_bgr if light.sink_bgr is not None else np.zeros((3, 3))
+        terms = (
+            f"position_order = {0 if light.position_bgr is None else 1}  # 1: the tables below vary over the field\n"
+            f"position_scale_mm = {float(light.position_scale_mm or 1.0)!r}  # x~, y~ = mm from the centre / this\n"
+            f"position_range = {_toml_numbers(_finite_range(light.position_range))}  # x~, y~ held within\n"
+            f"sink_bgr = [{', '.join(_toml_numbers(row) for row in sink)}]  # per mm of sink: k, kx, ky per channel\n"
+        )
+        if light.position_bgr is not None:
+            terms += (
+                "\n".join(
+                    f"position_{axis}_{c} = {_toml_rows(light.position_bgr[i, k])}"
+                    for i, c in enumerate("bgr")
+                    for k, axis in enumerate("xy")
+                )
+                + "\n"
+            )
+    fmt_line = "" if profile.format == 1 else "format = 2\n"
+    text = f'''# Sensor profile (sensor_sim.profile): one tactile sensor's frame, gel, optics, markers and noise.
 [sensor]
-name = "{profile.name}"
-source = "{profile.source}"
+{fmt_line}name = {_toml_str(profile.name)}
+source = {_toml_str(profile.source)}
 width_px = {profile.width_px}
 height_px = {profile.height_px}
 mm_per_px = {profile.mm_per_px!r}
-noise_std = {profile.noise_std!r}  # grey levels per pixel and channel
-background = "{bg_path.name}"  # no-contact frame, resized to the frame
-
+{noise_line}background = "{bg_path.name}"  # no-contact frame, resized to the frame
+{noise_section}
 [gel]
 thickness_mm = {profile.gel_thickness_mm!r}
 E_MPa = {profile.gel_E_MPa!r}
@@ -251,7 +384,7 @@ shading = "{light.shading}"
 blur_mm = {light.blur_mm!r}
 reference_bgr = [{", ".join(f"{v!r}" for v in light.reference_bgr)}]
 table_bins = {light.bins}
-{tables}
+{terms}{tables}
 '''
     path.write_text(text)
     return path
@@ -285,7 +418,7 @@ def profile_from_record(text: str, where: str = "run file") -> SensorProfile:
     has the recorded content hash. ProfileError (naming name, hash and file) when neither has."""
     rec = parse_record(text, where)
     candidates = [rec["file"]] if rec["file"] else []
-    candidates.append(str(DEFAULT_PROFILE))
+    candidates += [str(shipped) for shipped in SHIPPED_PROFILES]
     for candidate in candidates:
         if not Path(candidate).is_file():
             continue

@@ -13,6 +13,7 @@ logged once per contact model, so that a run can record how many frames it affec
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import math
 import threading
@@ -21,7 +22,7 @@ import numpy as np
 
 from objects.indenters import Indenter, get_indenter
 from objects.pose import Pose
-from sensor_sim.contact import ContactResult, SensorGeometry, TactileContact
+from sensor_sim.contact import ContactResult, SensorGeometry, TactileContact, cells_to_resolve
 from sensor_sim.elastomer import Elastomer
 
 log = logging.getLogger(__name__)
@@ -206,7 +207,15 @@ class ElastomerContact:
 
 
 RIG_TOL = 3e-3  # the simulated rig's solver tolerance (relative change of p and q per iteration)
-RIG_CELLS = 96  # the simulated rig's mechanics cells across the pad
+RIG_CELLS = 96  # the simulated rig's mechanics cells across the default 14 mm pad
+RIG_CELL_MM = 14.0 / RIG_CELLS  # the largest cell the simulated rig uses on any pad (0.146 mm)
+MAX_RIG_CELLS = 1024  # a finer grid than this to resolve an object is refused (UnresolvedFeature)
+
+
+def rig_cells(width_mm: float, height_mm: float) -> int:
+    """Cells across the longer side of a ``width_mm`` × ``height_mm`` pad: RIG_CELLS on the
+    default 14 mm pad, and cells of at most RIG_CELL_MM on a larger one."""
+    return max(RIG_CELLS, math.ceil(max(width_mm, height_mm) / RIG_CELL_MM - 1e-9))
 
 
 def rig_contact(
@@ -214,11 +223,16 @@ def rig_contact(
 ) -> ElastomerContact:
     """The simulated rig's gel (a sensor profile's gel and pad, or the defaults): by default
     96 cells over the 14 mm pad (0.146 mm), well under 1 % force error for these contacts
-    (docs/simulator.md) at half the cost of 128.
+    (docs/simulator.md) at half the cost of 128. An object whose smallest feature is under
+    two cells gets a finer grid (refined, up to MAX_RIG_CELLS; beyond, UnresolvedFeature).
 
     Both problems stop at a relative change of ``RIG_TOL`` per iteration: warm-started from
     the frame before (10 µm away), the wrench stays within 0.01 N and 0.2 N·mm of solves
     to 1e-5, under one count of the FT300's wire format, at two thirds of the solver's
     time at 1e-3 (docs/benchmarks.md, "Simulated run")."""
+    indenter = get_indenter(indenter) if isinstance(indenter, str) else indenter
     geometry = geometry or SensorGeometry(cells=RIG_CELLS)
+    needed = cells_to_resolve(indenter, max(geometry.width_mm, geometry.height_mm))
+    if geometry.cells < needed <= MAX_RIG_CELLS:
+        geometry = dataclasses.replace(geometry, cells=needed)
     return ElastomerContact(indenter, gel, geometry, tol=RIG_TOL, tangential_tol=RIG_TOL)

@@ -13,6 +13,7 @@ from cli.rig_app import app
 from model.baseline import BaselineUnavailable, PhysicsRender
 from rig.sim.rig_sim import SimulatedRig
 from sensor_sim.light import LightModel
+from sensor_sim.noise import SensorNoise
 from sensor_sim.profile import (
     DEFAULT_PROFILE,
     ProfileError,
@@ -37,7 +38,14 @@ def green_profile(path: Path, **changes) -> Path:
     background = np.zeros((h, w, 3), np.uint8)
     background[:] = (60, 170, 90)
     profile = dataclasses.replace(
-        base, name="green", light=light, background=background, gel_thickness_mm=2.0, noise_std=0.0, **changes
+        base,
+        name="green",
+        light=light,
+        background=background,
+        gel_thickness_mm=2.0,
+        noise=SensorNoise((0.0, 0.0, 0.0)),
+        format=2,
+        **changes,
     )
     return save_profile(profile, path)
 
@@ -54,10 +62,15 @@ def test_simulated_rig_uses_the_profile_for_gel_and_camera(tmp_path):
         assert plain.world.contact.solver.gel.thickness_mm == 3.0 and "width = 256" in plain.config_toml()
 
 
-def test_a_non_square_profile_is_refused_by_the_simulated_rig(tmp_path):
-    profile = load_profile(green_profile(tmp_path / "wide.toml", width_px=320, height_px=240))
-    with pytest.raises(ValueError, match="renders a square pad.*320x240"):
-        SimulatedRig(profile=profile)
+def test_a_non_square_profile_runs_on_the_simulated_rig_at_its_own_size(tmp_path):
+    """A 320 × 240 sensor over 19.2 × 14.4 mm: the camera's frame, the config and the pad are its own."""
+    profile = load_profile(green_profile(tmp_path / "wide.toml", width_px=320, height_px=240, mm_per_px=0.06))
+    with SimulatedRig(profile=profile) as sim:
+        config = sim.config_toml()
+        assert "width = 320" in config and "height = 240" in config and f"mm_per_px = {0.06!r}" in config
+        geometry = sim.world.contact.solver.geometry
+        assert (geometry.width_mm, geometry.height_mm) == pytest.approx((19.2, 14.4))
+        assert sim.camera_source().render_now().shape == (240, 320, 3)
 
 
 def test_sim_commands_take_a_profile_and_refuse_a_bad_one(tmp_path):
@@ -93,10 +106,10 @@ def test_a_run_records_its_profile_and_the_physics_row_finds_it(tmp_path):
     own = np.abs(by_default.render(poses[k]).astype(float) - frames[k]).mean()
     shipped = np.abs(PhysicsRender(str(run), profile=default_profile()).render(poses[k]).astype(float) - frames[k])
     assert own < 1.0 and shipped.mean() > 2 * own, (own, shipped.mean())
-    path.write_text(path.read_text().replace("noise_std = 0.0", "noise_std = 2.0"))  # the profile changed since
+    path.write_text(path.read_text().replace("std_bgr = [0.0, 0.0, 0.0]", "std_bgr = [2.0, 2.0, 2.0]"))  # changed since
     with pytest.raises(BaselineUnavailable, match="green.*not there or has changed.*--profile"):
         PhysicsRender(str(run))
-    assert PhysicsRender(str(run), profile=load_profile(path)).profile.noise_std == 2.0
+    assert PhysicsRender(str(run), profile=load_profile(path)).profile.noise.std_bgr == (2.0, 2.0, 2.0)
 
 
 def test_a_plain_sim_run_records_the_shipped_profile():

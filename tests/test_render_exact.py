@@ -9,7 +9,8 @@ renderer as it was before that (commit 9c34a2e): the (H, W, 3) formulas, everyth
 recomputed per frame. For each sensor kind and a sequence of contact states (none, a
 press, a sheared press, a twisted press, a deep press, states repeated, with and without
 noise from a fixed seed, over the profile's background and over one bright and dark
-enough to reach both knees of the soft bound) the two must give the same uint8 frames.
+enough to reach both knees of the soft bound) the two must give the same uint8 frames, for
+the shipped profile of format 1 (one normal table, independent noise: what the reference knows).
 """
 
 from __future__ import annotations
@@ -24,8 +25,15 @@ from common.sensors import SENSOR_KINDS
 from objects.pose import Pose
 from sensor_sim.light import CEIL, FLOOR, KNEE_HIGH, KNEE_LOW, remap_interpolates_exactly
 from sensor_sim.optics import Renderer
-from sensor_sim.profile import default_profile
+from sensor_sim.profile import SHIPPED_PROFILES, load_profile
 from sensor_sim.scene import Scene
+
+
+def format1_profile():
+    """The shipped profile as it was before the position-dependent light and the correlated noise
+    (format 1): what the reference renderer below renders, and a profile of format 1 renders the same."""
+    return load_profile(SHIPPED_PROFILES[1])
+
 
 SEED = 11
 STATES = (  # (x mm, y mm, z mm, twist deg): none, press, shear, twist, deep, repeats, none
@@ -193,7 +201,7 @@ def _bright_and_dark(shape=(240, 320)) -> np.ndarray:
 @pytest.mark.parametrize("noise", [True, False], ids=["noise", "no-noise"])
 @pytest.mark.parametrize("background", ["profile", "bright-dark"])
 def test_frames_equal_the_reference_bit_for_bit(gather, fields_by_kind, kind, noise, background):
-    profile = default_profile()
+    profile = format1_profile()
     spec = profile.optics_spec(kind)
     geometry = Scene("sphere10mm", kind).geometry
     bg = _bright_and_dark() if background == "bright-dark" else None
@@ -218,7 +226,7 @@ def test_frames_equal_the_reference_bit_for_bit(gather, fields_by_kind, kind, no
 def test_renderer_state_follows_the_noise_switch(gather, fields_by_kind):
     """Tests and benches turn the noise off with ``renderer._noise = None``; turning it back
     on with a bank gives that bank's noise."""
-    profile = default_profile()
+    profile = format1_profile()
     spec = profile.optics_spec("rgb")
     geometry = Scene("sphere10mm", "rgb").geometry
     new = Renderer(spec, geometry, None, SEED, profile=profile)
@@ -234,7 +242,7 @@ def test_renderer_state_follows_the_noise_switch(gather, fields_by_kind):
 
 def test_slope_change_and_marker_mask_equal_the_reference(gather, fields_by_kind):
     """The public pieces (the colour change, the marker coverage) are unchanged too."""
-    profile = default_profile()
+    profile = format1_profile()
     for kind in SENSOR_KINDS:
         spec = profile.optics_spec(kind)
         geometry = Scene("sphere10mm", kind).geometry
@@ -254,7 +262,7 @@ def test_remap_lookup_frames_within_one_grey_level_of_the_reference(fields_by_ki
     within 1 grey level of the reference, in at most 1 pixel value in 10,000."""
     if not remap_interpolates_exactly():
         pytest.skip("this OpenCV rounds remap's fraction: the renderer keeps the gather (tested above)")
-    profile = default_profile()
+    profile = format1_profile()
     spec = profile.optics_spec(kind)
     geometry = Scene("sphere10mm", kind).geometry
     bg = _bright_and_dark()
@@ -281,7 +289,7 @@ def test_a_rounding_remap_is_not_used(monkeypatch, fields_by_kind):
     remap_interpolates_exactly.cache_clear()
     try:
         assert not light_module.remap_interpolates_exactly()
-        profile = default_profile()
+        profile = format1_profile()
         spec = profile.optics_spec("rgb")
         geometry = Scene("sphere10mm", "rgb").geometry
         new = Renderer(spec, geometry, None, SEED, profile=profile)
@@ -294,7 +302,7 @@ def test_a_rounding_remap_is_not_used(monkeypatch, fields_by_kind):
 
 def test_slopes_the_remap_cannot_take_use_the_gather():
     """cv2.remap takes 2-D maps under 32,767 px a side: other slopes get the gather's numbers."""
-    light = default_profile().light
+    light = format1_profile().light
     rng = np.random.default_rng(3)
     for shape in ((2, 3, 4), (7,), (40_000, 1)):
         gx, gy = (rng.normal(0, 0.4, shape).astype(np.float32) for _ in range(2))

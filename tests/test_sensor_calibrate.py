@@ -11,16 +11,19 @@ import pytest
 from typer.testing import CliRunner
 
 from cli.rig_app import app
-from sensor_sim.calibration import Contact, render_press
+from objects.indenters import sphere
+from sensor_sim.calibration import provisional_profile
 from sensor_sim.calibration_report import TILE_PX
+from sensor_sim.elastomer import Elastomer
 from sensor_sim.light import LightModel
+from sensor_sim.press_render import PressRender
 from sensor_sim.profile import default_profile, load_profile
 
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "data" / "gelsight_mini"
 runner = CliRunner()
 ROW = re.compile(
-    r"^\| (?P<name>[^|]+) \| (?P<cx>[\d.]+), (?P<cy>[\d.]+) \| (?P<r>[\d.]+) \| (?P<fit>[\d.]+) / (?P<fit_near>[\d.]+) "
-    r"\| (?P<bg>[\d.]+) / (?P<bg_near>[\d.]+) \|$"
+    r"^\| (?P<name>[^|]+) \| (?P<cx>[\d.]+), (?P<cy>[\d.]+) \| (?P<r>[\d.]+) \| (?P<depth>[\d.]+) \| "
+    r"(?P<fit>[\d.]+) / (?P<fit_near>[\d.]+) \| (?P<bg>[\d.]+) / (?P<bg_near>[\d.]+) \|$"
 )
 
 
@@ -55,30 +58,35 @@ def test_real_presses_three_are_enough(tmp_path):
         assert float(r["fit"]) < float(r["bg"]), r
         assert float(r["fit_near"]) < 0.35 * float(r["bg_near"]), r
     profile = load_profile(tmp_path / "mini.toml")
-    assert profile.name == "mini" and profile.width_px == profile.height_px == 256
-    assert abs(profile.width_px * profile.mm_per_px - 480 * 0.0295) < 1e-6  # the frame's shorter side
+    assert profile.name == "mini" and (profile.width_px, profile.height_px) == (640, 480)  # the whole frame
+    assert abs(profile.width_px * profile.mm_per_px - 640 * 0.0295) < 1e-6
+    assert profile.format == 2 and 0.3 < min(profile.noise.std_bgr) and profile.noise.correlation_px > 0.3
     sheet = cv2.imread(str(tmp_path / "mini-sheet.png"))
     assert sheet.shape[:2] == (22 + 3 * (22 + TILE_PX), 3 * TILE_PX)
+    assert "field coverage: presses in 1 of 9 regions (centre)" in result.output
 
 
 def synthetic_sensor(tmp_path: Path, n: int = 3, noise: float = 1.0):
     """A sensor unlike the GelSight Mini: greenish vignetted background, a light with other
-    colours per tilt, 320x240 frames at 0.03 mm/px; presses of a 2 mm ball at known contacts."""
+    colours per tilt, 320x240 frames at 0.03 mm/px; presses of a 4 mm ball (the simulator's
+    contact solver and renderer) at known places and depths. Returns their (x, y) centres in px."""
     rng = np.random.default_rng(3)
     h, w = 240, 320
     ys, xs = np.mgrid[0:h, 0:w].astype(np.float32)
     shade = 1.0 - 0.25 * ((xs - w / 2) ** 2 + (ys - h / 2) ** 2) / (w / 2) ** 2
-    background = np.stack([70 + 0.1 * xs, 150 * shade, 110 - 0.1 * ys], axis=-1).astype(np.float32)
+    background = np.clip(np.stack([70 + 0.1 * xs, 150 * shade, 110 - 0.1 * ys], axis=-1), 0, 255).astype(np.uint8)
     bins = 21
     ny, nx = np.mgrid[-1 : 1 : bins * 1j, -1 : 1 : bins * 1j]
     table = np.stack([-80 * ny, 70 * nx - 20 * ny, -60 * (nx**2 + ny**2) + 50 * ny])
     light = LightModel(table.astype(np.float32), 0.2, "multiplicative", tuple(background.reshape(-1, 3).mean(0)))
-    contacts = [Contact(150 + 12 * k, 110 + 6 * k, 22 + 5 * k) for k in range(n)]
+    render = PressRender(provisional_profile(background, 0.03, Elastomer(), light), sphere(4.0))
+    centres = [(150.0 + 12 * k, 110.0 + 6 * k) for k in range(n)]
     noisy = lambda img: np.clip(img + rng.normal(0, noise, img.shape), 0, 255).astype(np.uint8)  # noqa: E731
-    cv2.imwrite(str(tmp_path / "background.png"), noisy(background))
-    for k, c in enumerate(contacts):
-        cv2.imwrite(str(tmp_path / f"press_{k}.png"), noisy(render_press(light, background, c, 2.0, 0.03)))
-    return contacts
+    cv2.imwrite(str(tmp_path / "background.png"), noisy(background.astype(np.float32)))
+    for k, (x, y) in enumerate(centres):
+        frame = render.render(render.pose_of_pixel(x, y, -(0.25 + 0.1 * k))).astype(np.float32)
+        cv2.imwrite(str(tmp_path / f"press_{k}.png"), noisy(frame))
+    return centres
 
 
 def test_a_sensor_it_has_never_seen(tmp_path):
@@ -94,12 +102,13 @@ def test_a_sensor_it_has_never_seen(tmp_path):
     assert "every contact found automatically" in result.output and "warning" not in result.output
     rows = table_rows(result.output)
     assert len(rows) == len(contacts)
-    for r, c in zip(rows, contacts):
-        assert abs(float(r["cx"]) - c.centre_x_px) < 1.5 and abs(float(r["cy"]) - c.centre_y_px) < 1.5, r
+    for r, (x, y) in zip(rows, contacts):
+        assert abs(float(r["cx"]) - x) < 1.5 and abs(float(r["cy"]) - y) < 1.5, r
         assert float(r["fit"]) < float(r["bg"]) and float(r["fit_near"]) < 0.2 * float(r["bg_near"]), r
     profile = load_profile(tmp_path / "out" / "green.toml")
-    assert profile.noise_std == pytest.approx(1.0, abs=0.15)  # estimated away from the contacts
-    assert profile.width_px * profile.mm_per_px == pytest.approx(240 * 0.03)
+    assert profile.noise.std_bgr == pytest.approx((1.0, 1.0, 1.0), abs=0.15)  # measured away from the contacts
+    assert profile.noise.correlation_px < 0.3  # the noise drawn here is independent per pixel
+    assert (profile.width_px, profile.height_px) == (320, 240) and profile.width_mm == pytest.approx(320 * 0.03)
     assert abs(profile.background.mean(axis=(0, 1)) - default_profile().background.mean(axis=(0, 1))).max() > 20
     assert (tmp_path / "out" / "green-sheet.png").is_file() and (tmp_path / "out" / "green.png").is_file()
 

@@ -37,11 +37,8 @@ class SimCameraSource:
         profile=None,
     ):
         """``profile`` (a SensorProfile): its optics, background, noise and markers; None: the
-        shipped default's optics with ``noise_std``."""
-        if height != width:
-            raise ValueError(
-                f"the simulated camera renders a square gel pad: width ({width}) must equal height ({height})"
-            )
+        shipped default's optics with ``noise_std``. The frame is ``width`` × ``height`` over the
+        contact model's pad (a profile's frame need not be square)."""
         self.world = world
         self.clock = clock
         self.period_s = 1.0 / fps

@@ -23,7 +23,7 @@ from rig.sim.served import ServedDevice
 from rig.sim.stage import Stopping
 from rig.sim.world import SimWorld, WorldSpec
 from rig.sim.zaber_sim import ZaberChainSim, ZaberDeviceSim
-from sensor_sim.world_contact import RIG_CELLS, rig_contact
+from sensor_sim.world_contact import rig_cells, rig_contact
 
 ZABER_MICROSTEP_MM = 0.047625e-3  # a common Zaber linear-stage microstep
 THETA_PULSES_PER_REV = 10000
@@ -37,7 +37,7 @@ DEVICE_TIMEOUT_S = 0.3
 # What `rig sim serve` writes instead: its clients wait in real time, writes included, and on a
 # loaded 2-core machine a 0.3 s write timeout was seen to trip mid-run against a served rig.
 SERVED_DEVICE_TIMEOUT_S = 1.0
-CAMERA_SIZE_PX = 256  # the simulated camera renders a square gel pad (a profile sets its own)
+CAMERA_SIZE_PX = 256  # the simulated camera's frame without a profile: a square pad (a profile sets its own)
 
 
 class SimulatedRig:
@@ -57,29 +57,26 @@ class SimulatedRig:
         gauge_at_every_step: bool = True,
     ):
         """``profile``: a ``sensor_sim.profile.SensorProfile`` for the gel (thickness, modulus,
-        field of view) and the camera (optics, background, noise, frame size); None: the
-        shipped default. Its frame must be square (the simulated camera renders a square pad).
-        ``gauge_at_every_step=False``: on a discrete-event clock the gauge reports only at its
-        rate, not also at every step of the clock (the overshoot tests: a 10 Hz gauge's samples
-        are 100 ms apart, as on hardware)."""
+        field of view) and the camera (optics, background, noise, frame size: its own, square or
+        not); None: the shipped default. ``gauge_at_every_step=False``: on a discrete-event clock
+        the gauge reports only at its rate, not also at every step of the clock (the overshoot
+        tests: a 10 Hz gauge's samples are 100 ms apart, as on hardware)."""
         gauge_row = kind("gauge", gauge, path="<built-in simulated rig>", key="gauge")
         if gauge_row.simulator is None:
             raise ValueError(f"gauge kind {gauge!r} has no simulator in its registry row")
         self.clock = clock or SystemClock()
-        if profile is not None and profile.width_px != profile.height_px:
-            raise ValueError(
-                f"sensor profile {profile.path or profile.name}: the simulated camera renders a square pad, "
-                f"the profile's frame is {profile.width_px}x{profile.height_px}"
-            )
         self.profile = profile
-        self.camera_px = CAMERA_SIZE_PX if profile is None else profile.width_px
+        # the camera's frame (width, height): the profile's own, or the default square
+        self.camera_px = (CAMERA_SIZE_PX, CAMERA_SIZE_PX) if profile is None else (profile.width_px, profile.height_px)
         if contact is None:
             # an object file without a height map: NoHeightMap, one line, before anything opens
             shape = load_object_file(indenter).indenter() if is_object_file(indenter) else indenter
             contact = (
                 rig_contact(shape)
                 if profile is None
-                else rig_contact(shape, profile.gel(), profile.geometry(cells=RIG_CELLS))
+                else rig_contact(
+                    shape, profile.gel(), profile.geometry(cells=rig_cells(profile.width_mm, profile.height_mm))
+                )
             )
         self.world = SimWorld(self.clock, spec, contact=contact, seed=seed)
         self.sensor_kind = sensor_kind
@@ -167,10 +164,11 @@ class SimulatedRig:
                 if served
                 else ["[camera]", 'driver = "sim"']
             )
-            lines += [f"width = {self.camera_px}", f"height = {self.camera_px}", "fps = 25.0", "discard_frames = 2"]
+            width, height = self.camera_px
+            lines += [f"width = {width}", f"height = {height}", "fps = 25.0", "discard_frames = 2"]
             solver = getattr(self.world.contact, "solver", None)
             if solver is not None:  # the rendered pad's calibration, stored in every run file
-                lines.append(f"mm_per_px = {solver.geometry.width_mm / self.camera_px!r}")
+                lines.append(f"mm_per_px = {solver.geometry.width_mm / width!r}")
             lines.append("")
         lines += ["[safety]", "max_force_N = [10.0, 10.0, 40.0]", "max_torque_Nmm = [300.0, 300.0, 200.0]"]
         lines += [f"gel_thickness_mm = {self.gel_thickness_mm!r}", ""]
@@ -197,8 +195,11 @@ class SimulatedRig:
         return parse_config(self.config_toml(with_camera=with_camera), "<built-in simulated rig>")
 
     def camera_source(
-        self, *, fps: float = 25.0, height: int = 256, width: int = 256, triggered: bool = False
+        self, *, fps: float = 25.0, height: int | None = None, width: int | None = None, triggered: bool = False
     ) -> SimCameraSource:
+        """The simulated camera; ``width`` × ``height`` default to the rig's frame (``camera_px``)."""
+        width = self.camera_px[0] if width is None else width
+        height = self.camera_px[1] if height is None else height
         return SimCameraSource(
             self.world,
             self.clock,
@@ -225,7 +226,7 @@ class SimulatedRig:
         """Serve the camera on a loopback TCP port; ``config_toml()`` then names it (driver
         "stream"), so another process (`rig sim serve`'s clients) reads frames like a device."""
         if self.camera_server is None:
-            source = self.camera_source(height=self.camera_px, width=self.camera_px, triggered=True)
+            source = self.camera_source(triggered=True)
             self.camera_server = CameraStreamServer(source)
         return self.camera_server
 

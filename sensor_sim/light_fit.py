@@ -1,0 +1,304 @@
+"""The light model's least squares: tables, position and sink terms from pixels of a few presses.
+
+    samples = [PressSamples.of(...) for each press]         # pixels near one press, their normals and sink
+    fit = fit_light_terms(samples, bins, order=1, ...)       # LightTerms: T, Tx, Ty (tables) and k, kx, ky
+    choice = choose_order(samples, bins)                     # by leave-one-press-out error
+
+Per channel the colour change over the shading is linear in every parameter (the tables'
+entries, bilinear in the normal; the position terms times x̃, ỹ; the sink terms times the
+sink), so all three channels share one design matrix: each press contributes its Gram matrix
+once, any subset of presses is a sum, and leaving a press out costs one solve. Normals the
+presses never showed are filled smoothly (a grid-Laplacian penalty); the flat normal's
+entries are held at 0 (the unpressed gel shows the background). numpy/scipy only.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.linalg import splu
+
+SMOOTHING = 1.0  # λ of the tables' Laplacian penalty per 1000 fitted pixels
+POSITION_RIDGES = (1e-3, 1e-2)  # per fitted pixel, on the position gains and turns: chosen by leave-one-out
+SINK_RIDGE = 1e-3  # per fitted pixel, on the sink terms (per mm of sink, grey levels)
+
+
+@dataclass
+class PressSamples:
+    """One press's fitted pixels: bilinear cells of their normals (idx, w: (n, 4)), position
+    (x̃, ỹ), sink (mm), shading (n, 3: the background over the reference; ones if additive), the
+    colour change to explain (n, 3) and which are near the contact."""
+
+    idx: np.ndarray
+    w: np.ndarray
+    x: np.ndarray
+    y: np.ndarray
+    sink: np.ndarray
+    shade: np.ndarray
+    target: np.ndarray
+    near: np.ndarray  # (n,) bool: within 1.5 contact radii (where renders are scored)
+    matrices: dict = field(default_factory=dict, repr=False)  # design rows per table size, made once
+
+    @property
+    def n(self) -> int:
+        return len(self.target)
+
+
+@dataclass
+class LightTerms:
+    table: np.ndarray  # (3, N, N)
+    position: np.ndarray | None  # (3, 2, N, N)
+    sink: np.ndarray  # (3, 3): k, kx, ky per channel
+    rms: float  # in-sample RMS residual over the shading (grey levels)
+
+
+def _laplacian(bins: int) -> sp.csr_matrix:
+    """Graph Laplacian of the bins × bins grid: penalises a table that is not smooth."""
+    line = sp.diags([-np.ones(bins - 1), np.r_[1.0, 2 * np.ones(bins - 2), 1.0], -np.ones(bins - 1)], [-1, 0, 1])
+    eye = sp.identity(bins)
+    return (sp.kron(eye, line) + sp.kron(line, eye)).tocsr()
+
+
+@functools.cache
+def _smoothness(bins: int) -> sp.csr_matrix:
+    """LᵀL of the grid Laplacian on the fitted entries (all but the flat normal's)."""
+    keep = np.ones(bins * bins, bool)
+    keep[(bins // 2) * bins + bins // 2] = False
+    lap = _laplacian(bins)[:, keep]
+    return (lap.T @ lap).tocsr()
+
+
+class _Design:
+    """Columns of the table-and-sink model: T (bins² less the flat entry), then the sink's k."""
+
+    def __init__(self, bins: int):
+        self.bins = bins
+        cells = bins * bins
+        self.keep = np.ones(cells, bool)
+        self.keep[(bins // 2) * bins + bins // 2] = False
+        self.column = np.full(cells, -1)
+        self.column[self.keep] = np.arange(self.keep.sum())
+        self.table_cols = int(self.keep.sum())
+        self.size = self.table_cols + 1
+
+    def matrix(self, s: PressSamples) -> sp.csr_matrix:
+        """The press's rows (cached on the samples: the same press is fitted many times)."""
+        if self.bins not in s.matrices:
+            cols = self.column[s.idx]  # (n, 4); -1 for the flat entry (fixed at 0)
+            ok = cols >= 0
+            cols_all = np.concatenate([np.where(ok, cols, 0), np.full((s.n, 1), self.table_cols)], axis=1)
+            vals_all = np.concatenate([np.where(ok, s.w, 0.0), s.sink[:, None]], axis=1)
+            rows = np.repeat(np.arange(s.n), cols_all.shape[1])
+            s.matrices[self.bins] = sp.csr_matrix((vals_all.ravel(), (rows, cols_all.ravel())), shape=(s.n, self.size))
+        return s.matrices[self.bins]
+
+    def tables_of(self, A: sp.csr_matrix) -> sp.csr_matrix:
+        return A[:, : self.table_cols]
+
+    def regulariser(self, n: int) -> sp.csc_matrix:
+        smooth = (SMOOTHING * n / 1000.0) * _smoothness(self.bins)
+        return sp.block_diag([smooth, sp.identity(1) * (SINK_RIDGE * n)]).tocsc()
+
+    def full(self, t: np.ndarray) -> np.ndarray:
+        """(3, table_cols) fitted entries → (3, N, N) tables (the flat entry 0), bounded."""
+        out = np.zeros((3, self.bins * self.bins))
+        out[:, self.keep] = t
+        return np.clip(out, -255, 255).reshape(3, self.bins, self.bins)
+
+
+@dataclass
+class _Normal:
+    """A press's contribution to the normal equations (per channel b, c; G shared)."""
+
+    G: sp.csr_matrix
+    b: np.ndarray  # (P, 3)
+    c: np.ndarray  # (3,)
+    n: int
+
+
+def _normal(design: _Design, s: PressSamples) -> _Normal:
+    A = design.matrix(s)
+    y = s.target / s.shade  # the change over the shading: one design for all three channels
+    return _Normal((A.T @ A).tocsr(), np.asarray(A.T @ y), (y * y).sum(axis=0), s.n)
+
+
+def _solve(design: _Design, parts: list[_Normal]) -> np.ndarray:
+    n = sum(p.n for p in parts)
+    G = parts[0].G.copy()
+    for p in parts[1:]:
+        G = G + p.G
+    b = sum(p.b for p in parts)
+    lu = splu((G + design.regulariser(n)).tocsc())
+    return lu.solve(np.ascontiguousarray(b)).T  # (3, P)
+
+
+def _residual(part: _Normal, t: np.ndarray) -> float:
+    """Sum over channels of the squared residual of ``part`` under solution ``t`` (3, P)."""
+    Gt = part.G @ t.T  # (P, 3)
+    return float(np.sum(t.T * Gt) - 2 * np.sum(t.T * part.b) + part.c.sum())
+
+
+def fit_light_terms(samples: list[PressSamples], bins: int, order: int, position_ridge: float = 1e-3) -> LightTerms:
+    """Order 0: the table and the sink's k (a linear least squares); order 1: the low-rank position
+    terms besides (``fit_low_rank``)."""
+    if order == 1:
+        table, position, sink = fit_low_rank(samples, bins, position_ridge)
+        rss, n = _low_rank_residual(samples, table, position, sink)
+        return LightTerms(table, position, sink, math.sqrt(max(rss, 0.0) / (3 * n)))
+    design = _Design(bins)
+    parts = [_normal(design, s) for s in samples]
+    t = _solve(design, parts)
+    rss = sum(_residual(p, t) for p in parts)
+    sink = np.zeros((3, 3))
+    sink[:, 0] = t[:, design.table_cols]
+    n = sum(p.n for p in parts)
+    return LightTerms(design.full(t[:, : design.table_cols]), None, sink, math.sqrt(max(rss, 0.0) / (3 * n)))
+
+
+def rotation_derivative(table: np.ndarray) -> np.ndarray:
+    """∂T/∂φ of (..., N, N) tables over the normal (rows ny, columns nx): how a table changes when
+    the light turns about the gel's normal (nx ∂T/∂ny − ny ∂T/∂nx)."""
+    bins = table.shape[-1]
+    n = np.linspace(-1.0, 1.0, bins)
+    d_ny, d_nx = np.gradient(table, 2.0 / (bins - 1), axis=(-2, -1))
+    nx, ny = np.meshgrid(n, n)
+    return nx * d_ny - ny * d_nx
+
+
+def _features(A: sp.csr_matrix, s: PressSamples, t_ch: np.ndarray, rt_ch: np.ndarray) -> np.ndarray:
+    """(n, 7) columns of the low-rank position model for one channel: the table's and its rotation's
+    lookups times x̃ and ỹ, then the sink, sink·x̃, sink·ỹ."""
+    tv, rv = A @ t_ch, A @ rt_ch
+    return np.stack([tv * s.x, tv * s.y, rv * s.x, rv * s.y, s.sink, s.sink * s.x, s.sink * s.y], axis=1)
+
+
+LOW_RANK_ITERATIONS = 2
+
+
+def fit_low_rank(samples: list[PressSamples], bins: int, ridge: float, base: np.ndarray | None = None):
+    """Tables T plus, per channel, a gain and a turn of T across the field (Tx = gx·T + rx·∂T/∂φ,
+    Ty likewise) and the sink terms k, kx, ky: 7 numbers per channel beside the table, fitted with
+    T in turns (the features of the previous T, which the position tables are made of, so that the
+    model rendered is the one fitted). ``base``: the table-and-sink fit's entries to start from.
+    Returns (table (3, N, N), position (3, 2, N, N), sink (3, 3))."""
+    design = _Design(bins)
+    A_T = [design.tables_of(design.matrix(s)) for s in samples]
+    n = sum(s.n for s in samples)
+    G = A_T[0].T @ A_T[0]
+    for a in A_T[1:]:
+        G = G + a.T @ a
+    reg = design.regulariser(n)[: design.table_cols, : design.table_cols]
+    lu = splu((G + reg).tocsc())
+    if base is None:
+        base = _solve(design, [_normal(design, smp) for smp in samples])[:, : design.table_cols]
+    table = np.array(base, dtype=np.float64)
+    beta = np.zeros((3, 7))
+    position = np.zeros((3, 2, bins * bins))
+    for _ in range(LOW_RANK_ITERATIONS):
+        full = np.zeros((3, bins * bins))
+        full[:, design.keep] = table
+        rot = rotation_derivative(full.reshape(3, bins, bins)).reshape(3, -1)[:, design.keep]
+        for ch in range(3):
+            GTF = np.zeros((design.table_cols, 7))
+            GFF = np.zeros((7, 7))
+            bT = np.zeros(design.table_cols)
+            bF = np.zeros(7)
+            for a, smp in zip(A_T, samples):
+                F = _features(a, smp, table[ch], rot[ch])
+                y = smp.target[:, ch] / smp.shade[:, ch]
+                GTF += np.asarray(a.T @ F)
+                GFF += F.T @ F
+                bT += a.T @ y
+                bF += F.T @ y
+            GFF += np.eye(7) * (ridge * n)
+            # Schur complement: (GFF - GTFᵀ (G+R)⁻¹ GTF) β = bF - GTFᵀ (G+R)⁻¹ bT
+            inv_bT = lu.solve(bT)
+            inv_GTF = lu.solve(np.ascontiguousarray(GTF))
+            beta[ch] = np.linalg.solve(GFF - GTF.T @ inv_GTF, bF - GTF.T @ inv_bT)
+            position[ch, 0] = 0.0
+            position[ch, 1] = 0.0
+            position[ch, 0, design.keep] = beta[ch, 0] * table[ch] + beta[ch, 2] * rot[ch]
+            position[ch, 1, design.keep] = beta[ch, 1] * table[ch] + beta[ch, 3] * rot[ch]
+            table[ch] = inv_bT - inv_GTF @ beta[ch]
+    return (
+        design.full(table),
+        np.clip(position, -255, 255).reshape(3, 2, bins, bins),
+        np.clip(beta[:, 4:], -1000, 1000),
+    )
+
+
+def _low_rank_change(s: PressSamples, table, position, sink) -> np.ndarray:
+    """(n, 3) change over the shading that a low-rank fit predicts at the samples."""
+    out = np.empty((s.n, 3))
+    for ch in range(3):
+        t = (table[ch].ravel()[s.idx] * s.w).sum(axis=1)
+        tx = (position[ch, 0].ravel()[s.idx] * s.w).sum(axis=1)
+        ty = (position[ch, 1].ravel()[s.idx] * s.w).sum(axis=1)
+        out[:, ch] = t + s.x * tx + s.y * ty + s.sink * (sink[ch, 0] + sink[ch, 1] * s.x + sink[ch, 2] * s.y)
+    return out
+
+
+def _low_rank_residual(samples: list[PressSamples], table, position, sink) -> tuple[float, int]:
+    """Squared residual (over the shading, all channels) of samples under a low-rank fit."""
+    rss, n = 0.0, 0
+    for s in samples:
+        rss += float(np.sum((s.target / s.shade - _low_rank_change(s, table, position, sink)) ** 2))
+        n += s.n
+    return rss, n
+
+
+def held_out_mae(samples: list[PressSamples], bins: int) -> float:
+    """The table-and-sink model's leave-one-press-out mean absolute error (grey levels, the shading
+    applied) near the contacts: what the blur is chosen by. The squared residual over the whole fit
+    window (what the tables are fitted to) chooses a blur that smooths the rim away to match the
+    gel's relaxation further out; near the contact, as renders are scored, it does not. One press:
+    in-sample."""
+    design = _Design(bins)
+    parts = [_normal(design, s) for s in samples]
+    total = n = 0.0
+    for k, held in enumerate(samples):
+        t = _solve(design, parts[:k] + parts[k + 1 :] if len(parts) > 1 else parts)
+        predicted = np.asarray(design.matrix(held) @ t.T) * held.shade
+        total += float(np.abs(predicted - held.target)[held.near].sum())
+        n += int(held.near.sum())
+    return total / (3 * max(n, 1))
+
+
+@dataclass
+class OrderChoice:
+    order: int
+    position_ridge: float
+    held_out_rms: dict[tuple[int, float], float]  # (order, ridge) → leave-one-press-out RMS (over the shading)
+
+
+def choose_order(samples: list[PressSamples], bins: int) -> OrderChoice:
+    """The model whose terms, fitted on all presses but one, explain the one left out best, over
+    every press: position order 0 (table and sink), or 1 (the low-rank position terms, with one of
+    POSITION_RIDGES): the spatial terms are kept only where the presses' spread supports them.
+    Fewer than three presses: order 0."""
+    if len(samples) < 3:
+        return OrderChoice(0, 0.0, {})
+    scores: dict[tuple[int, float], float] = {}
+    design = _Design(bins)
+    parts = [_normal(design, s) for s in samples]
+    rss = n = 0.0
+    bases = []
+    for k, part in enumerate(parts):
+        t = _solve(design, parts[:k] + parts[k + 1 :])
+        bases.append(t[:, : design.table_cols])
+        rss += _residual(part, t)
+        n += part.n
+    scores[(0, 0.0)] = math.sqrt(max(rss, 0.0) / (3 * n))
+    for ridge in POSITION_RIDGES:
+        rss = n = 0.0
+        for k, held in enumerate(samples):
+            fit = fit_low_rank(samples[:k] + samples[k + 1 :], bins, ridge, base=bases[k])
+            r, m = _low_rank_residual([held], *fit)
+            rss, n = rss + r, n + m
+        scores[(1, ridge)] = math.sqrt(max(rss, 0.0) / (3 * n))
+    best = min(scores, key=lambda key: scores[key])
+    return OrderChoice(best[0], best[1], scores)
