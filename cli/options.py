@@ -28,3 +28,9 @@ def number(*, low: float | None = None, high: float | None = None, positive: boo
         return value
 
     return check
+
+
+def fixed(value: float, digits: int, *, sign: bool = True) -> str:
+    """``value`` to ``digits`` decimals for printing, never "-0.0000": what rounds to zero prints as zero."""
+    rounded = round(float(value), digits) + 0.0  # + 0.0 turns -0.0 into 0.0
+    return f"{rounded:+.{digits}f}" if sign else f"{rounded:.{digits}f}"

@@ -6,18 +6,69 @@ import os
 from pathlib import Path
 
 import typer
-from rich.console import Console
 from rich.table import Table
 
-from common.errors import ConfigError
+from cli.run_display import output_console
+from common.errors import ConfigError, ToolError
 
-console = Console()
+console = output_console()
+
+
+# What the frames take on disk against raw (acquisition/schema.py, bench/storage_bench.py): the simulated
+# rig writes Blosc (0.66-0.77 of raw on simulated frames: a 5,783-frame sphere10mm run, 1.14 GB raw, is
+# about 0.76 GB), a camera's frames HTJ2K (0.24-0.28 of raw on real GelSight frames).
+SIM_RATIO = (0.66, 0.77)
+CAMERA_RATIO = (0.24, 0.28)
+FRAME_PX = 256
+
+
+def disk_estimate(plan, simulated: bool, frame_px: int = FRAME_PX) -> tuple[int, int, str]:
+    """(raw bytes, the larger compressed estimate, one line saying both) for a run of ``plan``."""
+    from acquisition.executor import disk_bytes
+
+    raw = disk_bytes(plan, (frame_px, frame_px, 3))
+    low, high = SIM_RATIO if simulated else CAMERA_RATIO
+    where = "the simulated rig's frames, Blosc" if simulated else "camera frames, HTJ2K"
+    text = (
+        f"about {_sizes(low * raw, high * raw)} on disk ({where}; {_sizes(raw)} of raw frames at {frame_px}x{frame_px})"
+    )
+    return raw, int(high * raw), text
+
+
+def _sizes(low: float, high: float | None = None) -> str:
+    """'751–876 MB', '1.14 GB'."""
+    unit, scale, digits = ("GB", 1e9, 2) if (high or low) >= 1e9 else ("MB", 1e6, 0)
+    if high is None:
+        return f"{low / scale:.{digits}f} {unit}"
+    return f"{low / scale:.{digits}f}–{high / scale:.{digits}f} {unit}"
 
 
 def fmt_duration(s: float) -> str:
     h, rem = divmod(int(round(s)), 3600)
     m, sec = divmod(rem, 60)
     return f"{h}h{m:02d}m{sec:02d}s" if h else f"{m}m{sec:02d}s"
+
+
+class UnknownProtocol(ToolError):
+    """A protocol name that is neither in the library nor a .toml file."""
+
+
+def known_protocol(name: str) -> str:
+    """``name`` when it is a library protocol or a .toml path; else one line with the nearest
+    library names ("did you mean …?") and the whole library."""
+    import difflib
+
+    from protocols.spec import protocol_names
+
+    names = protocol_names()
+    if name in names or Path(name).suffix == ".toml":
+        return name
+    close = difflib.get_close_matches(name, names, n=2, cutoff=0.6)
+    hint = f"did you mean {' or '.join(close)}? " if close else ""
+    raise UnknownProtocol(
+        f"no protocol named {name!r} in the library; {hint}(the library: {', '.join(names)}; or give the path "
+        "of a .toml protocol file)"
+    )
 
 
 def list_protocols() -> None:
@@ -36,12 +87,11 @@ def list_protocols() -> None:
     console.print(table)
 
 
-def show_protocol(name: str, frame_px: int = 256, settings: list[str] | None = None) -> None:
-    from acquisition.executor import disk_bytes
+def show_protocol(name: str, frame_px: int = FRAME_PX, settings: list[str] | None = None) -> None:
     from protocols.plan import Plan
     from protocols.spec import load_protocol
 
-    p = load_protocol(name, settings)
+    p = load_protocol(known_protocol(name), settings)
     plan = Plan.of(p)
     table = Table(title=f"{p.name}: {p.description}")
     for col in ("#", "phase", "level", "to x, y, z mm / θ deg", "speed", "duration", "captured"):
@@ -64,14 +114,23 @@ def show_protocol(name: str, frame_px: int = 256, settings: list[str] | None = N
             "yes" if s.captured else "no",
         )
     console.print(table)
-    gb = disk_bytes(plan, (frame_px, frame_px, 3)) / 1e9
     console.print(f"file: {p.path}")
     console.print(
         f"duration: {fmt_duration(plan.total_duration_s)} ({plan.total_duration_s:.1f} s; "
         f"captured {plan.captured_duration_s:.1f} s)"
     )
     console.print(f"frames: {plan.frame_count} at {p.capture_hz:g} Hz")
-    console.print(f"disk: about {gb:.2f} GB at {frame_px}x{frame_px} px (uncompressed frames)")
+    if p.max_force_N is not None and p.max_torque_Nmm is not None:
+        force = ", ".join(f"|{c}| ≤ {v:g}" for c, v in zip(("Fx", "Fy", "Fz"), p.max_force_N))
+        torque = ", ".join(f"|{c}| ≤ {v:g}" for c, v in zip(("Mx", "My", "Mz"), p.max_torque_Nmm))
+        console.print(
+            f"limits: {force} N; {torque} N·mm (the protocol's [limits]; your rig config's [safety] must allow "
+            "them: docs/protocols.md)",
+            highlight=False,
+            markup=False,
+        )
+    console.print(f"disk: {disk_estimate(plan, simulated=False, frame_px=frame_px)[2]}")
+    console.print(f"      with --sim: {disk_estimate(plan, simulated=True, frame_px=frame_px)[2]}")
 
 
 def check_new_run_path(out: Path) -> None:
@@ -102,20 +161,22 @@ def run_protocol(
     dry_run: bool,
     config: Path | None,
     sim: bool,
-    origin: tuple[float, float, float, float],
+    origin: tuple[float, float, float, float] | None,
     settings: list[str] | None = None,
     profile: Path | None = None,
 ) -> None:
-    """``profile``: the simulated sensor's profile TOML (--sim only; default the shipped one)."""
-    from acquisition.executor import disk_bytes, preflight
+    """``profile``: the simulated sensor's profile TOML (--sim only; default the shipped one);
+    ``origin`` None: the one remembered for the rig (rig find-contact --set-origin), else 0,0,0,0."""
+    from acquisition.executor import preflight
     from cli.session import check_profile_option, load_sim_profile
     from protocols.plan import AXES, Plan
     from protocols.spec import load_protocol
 
     check_profile_option(profile, sim)
     sensor_profile = load_sim_profile(profile) if sim else None  # a bad file is refused before anything opens
-    protocol = load_protocol(name, settings)
+    protocol = load_protocol(known_protocol(name), settings)
     plan = Plan.of(protocol)
+    origin, said = resolve_origin(origin, config, sim)
     origin_map = dict(zip(AXES, origin))
     if resume is not None and out is not None:
         raise ConfigError(str(out), "--out", f"give --out for a new run or --resume {resume}, not both")
@@ -133,6 +194,8 @@ def run_protocol(
         assert out is not None  # named above when neither --out nor --resume was given
         check_new_run_path(out)  # before any device opens: a refused --out moves nothing
     path = resume or out
+    # printed once the rig (or the dry run's check) is past every refusal: an error stays one line
+    origin_line = f"origin: x,y,z,theta = {','.join(f'{v:g}' for v in origin)} ({said})"
     if dry_run:
         if sim:
             from rig.sim.rig_sim import SimulatedRig
@@ -145,14 +208,14 @@ def run_protocol(
 
             rig_config = load_config(resolve_config_path(config))
         preflight(rig_config, plan, origin_map)
+        console.print(origin_line, highlight=False)
         console.print(
             f"dry run: {protocol.name} fits {rig_config.path}'s soft limits, axis speeds and depth guard "
-            "(from --origin); nothing moved. The speed envelope is checked when the run starts: it needs "
+            "(from the origin above); nothing moved. The speed envelope is checked when the run starts: it needs "
             "the gauge's measured period (docs/safety.md)"
         )
         console.print(
-            f"duration {fmt_duration(plan.total_duration_s)}, {plan.frame_count} frames, "
-            f"about {disk_bytes(plan, (256, 256, 3)) / 1e9:.2f} GB at 256x256"
+            f"duration {fmt_duration(plan.total_duration_s)}, {plan.frame_count} frames, {disk_estimate(plan, sim)[2]}"
         )
         return
     from rig.interruption import SignalsAsExceptions
@@ -162,12 +225,33 @@ def run_protocol(
     # signal; before or after, the rig still closes (a gauge left streaming breaks later commands).
     with SignalsAsExceptions():
         if sim:
-            _run_sim(protocol, plan, path, resume is not None, origin_map, sensor_profile)
+            _run_sim(protocol, plan, path, resume is not None, origin_map, sensor_profile, origin_line)
         else:
-            _run_hw(protocol, plan, path, resume is not None, origin_map, config)
+            _run_hw(protocol, plan, path, resume is not None, origin_map, config, origin_line)
 
 
-def _run_sim(protocol, plan, path, resume, origin, profile=None) -> None:
+ZERO_ORIGIN = (0.0, 0.0, 0.0, 0.0)
+
+
+def resolve_origin(origin, config: Path | None, sim: bool) -> tuple[tuple[float, float, float, float], str]:
+    """The run's origin and where it came from: --origin, the rig's remembered one, or 0,0,0,0."""
+    if origin is not None:
+        return tuple(origin), "from --origin"
+    if not sim:
+        from cli.session import resolve_config_path
+        from rig.config import load_config
+        from rig.rig_state import RigState, age_text
+
+        state = RigState.for_config(load_config(resolve_config_path(config)))
+        if state.origin is not None:
+            return state.origin.values, (
+                f"remembered by rig find-contact --set-origin {age_text(state.origin.t_unix)}, in {state.path}"
+            )
+        return ZERO_ORIGIN, "the default: no --origin given and none remembered (rig find-contact --set-origin)"
+    return ZERO_ORIGIN, "the simulated rig's contact point"
+
+
+def _run_sim(protocol, plan, path, resume, origin, profile=None, origin_line: str = "") -> None:
     from cli.simulated import monitor_interval_s, simulated_rig_for
 
     with simulated_rig_for(protocol, profile=profile) as (rig, simulated, header):
@@ -180,10 +264,11 @@ def _run_sim(protocol, plan, path, resume, origin, profile=None) -> None:
             header,
             monitor_interval_s=monitor_interval_s(protocol),
             solver_warnings=lambda: simulated.world.contact.solver_warnings,
+            origin_line=origin_line,
         )
 
 
-def _run_hw(protocol, plan, path, resume, origin, config) -> None:
+def _run_hw(protocol, plan, path, resume, origin, config, origin_line: str = "") -> None:
     from cli.session import resolve_config_path
     from rig.config import load_config
     from rig.rig import Rig
@@ -195,39 +280,25 @@ def _run_hw(protocol, plan, path, resume, origin, config) -> None:
         "mm_per_px": cfg.camera.mm_per_px if cfg.camera and cfg.camera.mm_per_px is not None else float("nan"),
     }
     with Rig.open(cfg, camera=True) as rig:
-        _execute(rig, plan, path, resume, origin, header, monitor_interval_s=None)
+        _execute(rig, plan, path, resume, origin, header, monitor_interval_s=None, origin_line=origin_line)
 
 
-def _execute(rig, plan, path, resume, origin, header, monitor_interval_s, solver_warnings=None) -> None:
-    from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
-
+def _execute(
+    rig, plan, path, resume, origin, header, monitor_interval_s, solver_warnings=None, origin_line: str = ""
+) -> None:
     from acquisition.executor import Acquisition
     from cli.console.run_progress import ProgressWriter
+    from cli.run_display import RunDisplay
+
+    if origin_line:
+        console.print(origin_line, highlight=False)
 
     sidecar = ProgressWriter(path, protocol=plan.protocol.name, frames=plan.frame_count, levels_mm=plan.protocol.levels)
-    with (
-        sidecar,
-        Progress(
-            TextColumn("{task.description}"),
-            BarColumn(),
-            TextColumn("{task.completed}/{task.total} frames"),
-            TimeRemainingColumn(),
-            TextColumn("{task.fields[wrench]}"),
-            console=console,
-            transient=False,
-        ) as bar,
-    ):
-        task = bar.add_task(plan.protocol.name, total=plan.frame_count, wrench="")
+    with sidecar, RunDisplay(console, plan.protocol.name, plan.frame_count) as show:
 
         def on_progress(p):
             sidecar.update(p)  # RUN.h5.progress.json: what `rig console` shows while the run goes on
-            bar.update(
-                task,
-                completed=p.frame,
-                description=f"{plan.protocol.name} L{p.level} {p.phase:8s}",
-                wrench=f"Fz {p.wrench[2]:6.2f} N  Fx {p.wrench[0]:+5.2f}  Fy {p.wrench[1]:+5.2f}  "
-                f"Mz {p.wrench[5]:+6.2f} N·mm",
-            )
+            show(p)
 
         acq = Acquisition(
             rig,

@@ -16,7 +16,7 @@ from typing import Annotated, Optional
 import typer
 
 from cli.object_app import app as object_app
-from cli.options import number
+from cli.options import fixed, number
 from cli.sensor_app import app as sensor_app
 from rig.config import MAX_FORCE_LIMIT_N, MAX_SPEED, TRAVEL_LIMIT
 from rig.config.registry import kinds
@@ -183,12 +183,14 @@ def jog(
 
     if step is not None and to is not None:
         _fail("give --step or --to, not both")
+    if step is None and to is None and not pendant and not stdin_is_terminal():
+        _fail("interactive jogging needs a terminal (stdin is not one): run it in a terminal, or give --step or --to")
     with open_rig(config, sim, profile=profile, axes=(axis.value,)) as rig:
         unit = rig.config.axes[axis.value].unit
         if step is not None or to is not None:
             with rig.motion("jog", on_start=_say, on_note=_note, allow_deep=allow_deep) as m:
                 final = m.jog(axis.value, step=step, to=to, speed=speed)
-            typer.echo(f"{axis.value} = {final:.4f} {unit}")
+            typer.echo(f"{axis.value} = {fixed(final, 4, sign=False)} {unit}")
             return
         from cli.interactive import jog_with_keys, jog_with_pendant
 
@@ -197,6 +199,13 @@ def jog(
                 jog_with_pendant(m, axis.value, key_step, speed)
             else:
                 jog_with_keys(m, axis.value, key_step, speed)
+
+
+def stdin_is_terminal() -> bool:
+    """Interactive jogging reads single keys from a terminal (tests stand one in here)."""
+    import sys
+
+    return sys.stdin.isatty()
 
 
 @app.command()
@@ -218,7 +227,7 @@ def home(
         with rig.motion("home", on_start=_say) as m:
             m.home_axes(names)
         for name, pos in rig.positions().items():
-            typer.echo(f"{name} homed, at {pos:.4f} {rig.config.axes[name].unit}")
+            typer.echo(f"{name} homed, at {fixed(pos, 4, sign=False)} {rig.config.axes[name].unit}")
 
 
 @app.command()
@@ -247,7 +256,8 @@ def zero(
                 )
         bias = rig.tare(samples)
         typer.echo(
-            "bias removed: " + ", ".join(f"{c} {v:+.4f} {u}" for c, v, u in zip(WRENCH_COMPONENTS, bias, WRENCH_UNITS))
+            "bias removed: "
+            + ", ".join(f"{c} {fixed(v, 4)} {u}" for c, v, u in zip(WRENCH_COMPONENTS, bias, WRENCH_UNITS))
         )
         where = rig.state.path or "this process only (the built-in simulated rig is new each command)"
         typer.echo(
@@ -284,21 +294,109 @@ def find_contact_cmd(
             callback=number(positive=True, high=TRAVEL_LIMIT),
         ),
     ] = 10.0,
+    set_origin: Annotated[
+        bool,
+        typer.Option(
+            "--set-origin",
+            help="Also remember the contact point (x, y, z, theta) for this rig: rig run-protocol starts from it "
+            "when --origin is not given.",
+        ),
+    ] = False,
     config: ConfigOpt = None,
     sim: SimOpt = False,
     profile: ProfileOpt = None,
 ):
-    """Lower z under the force limits until the indenter touches the gel; print the contact point."""
+    """Lower z under the force limits until the indenter touches the gel; print the contact point as a
+    complete --origin x,y,z,theta (x, y and theta where they stand: centre the indenter first, rig check-axes
+    says how)."""
     from cli.session import open_rig
     from rig.contact_search import find_contact
 
-    with open_rig(config, sim, profile=profile, axes=("z",)) as rig:
+    with open_rig(config, sim, profile=profile) as rig:
         found = find_contact(rig, threshold_N=threshold, speed_mm_s=speed, max_travel_mm=max_travel, on_start=_say)
+        values, missing = found.origin()
+        forgotten = rig.state.forget_origin()
+        stored = rig.state.remember_origin(values) if set_origin else None
+        where = rig.state.path
     typer.echo(
         f"contact at z = {found.z_mm:.4f} mm (|Fz| = {abs(found.fz_N):.3f} N, resolution "
         f"{found.resolution_mm * 1000:.1f} µm); z lifted clear; remembered as the gel surface for the depth guard"
     )
-    typer.echo(f"use: rig run-protocol NAME --origin X,Y,{found.z_mm:.4f},THETA")
+    origin = ",".join(fixed(v, 4, sign=False) for v in values)
+    typer.echo(f"origin: x,y,z,theta = {origin}" + (f" ({', '.join(missing)} not configured: 0)" if missing else ""))
+    if forgotten is not None and (stored is None or forgotten.values != stored.values):
+        typer.echo(
+            f"the origin remembered before ({forgotten.text()}) is replaced by this contact"
+            if stored
+            else f"the origin remembered before ({forgotten.text()}) was forgotten: it predates this contact"
+        )
+    if stored is None:
+        typer.echo(f"use: rig run-protocol NAME --origin {origin}   (or rig find-contact --set-origin to store it)")
+    elif where is None:
+        typer.echo(
+            "origin stored for this process only: the built-in simulated rig is new each command, and its contact "
+            "point is 0,0,0,0 (rig run-protocol --sim starts there)"
+        )
+    else:
+        typer.echo(f"origin stored in {where}: rig run-protocol NAME starts from it when --origin is not given")
+
+
+@app.command("check-axes")
+@friendly_errors
+def check_axes_cmd(
+    fix: Annotated[
+        bool,
+        typer.Option(
+            "--fix",
+            help="Write the fix (which stage is x and which y, each axis's direction) into the rig config, "
+            "atomically, keeping a copy of the old file beside it.",
+        ),
+    ] = False,
+    step: Annotated[
+        float,
+        typer.Option("--step-mm", help="How far x and y move each way, mm.", callback=number(positive=True, high=5.0)),
+    ] = 1.0,
+    twist: Annotated[
+        float,
+        typer.Option(
+            "--twist-deg",
+            help="How far theta turns each way while pressed, deg.",
+            callback=number(positive=True, high=45.0),
+        ),
+    ] = 5.0,
+    depth: Annotated[
+        Optional[float],
+        typer.Option(
+            "--depth-mm",
+            help="How deep to press below the gel surface, mm "
+            "(default: a third of the config's safety.gel_thickness_mm).",
+            callback=number(positive=True, high=TRAVEL_LIMIT),
+        ),
+    ] = None,
+    config: ConfigOpt = None,
+    sim: SimOpt = False,
+    profile: ProfileOpt = None,
+):
+    """Check that +x moves the contact right in the camera image, +y up and +theta counter-clockwise (the run
+    files' convention), and that the gauge's Fx, Fy agree: small guarded presses and moves with the indenter on the
+    gel. Reports mirrored, swapped or turned axes, the mm per pixel seen, and where the contact sits in the frame
+    (the move that centres it). With --fix, writes the config change. Exit 2 when the axes disagree."""
+    from cli.axis_check_cmd import run_check
+    from rig.axis_check import CheckSettings
+
+    ok = run_check(
+        config=config,
+        sim=sim,
+        profile=profile,
+        fix=fix,
+        settings=CheckSettings(step_mm=step, twist_deg=twist, depth_mm=depth),
+        say=_say,
+        note=_note,
+        out=typer.echo,
+        warn=lambda text: typer.secho(text, fg=typer.colors.YELLOW),
+    )
+    if not ok:
+        raise typer.Exit(2)
 
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff")
@@ -360,6 +458,7 @@ def sim_serve(
     faulthandler.register(signal.SIGUSR1)  # `kill -USR1 PID` prints every thread's stack (a stuck simulator)
 
     from cli.session import load_sim_profile
+    from rig.interruption import SignalsAsExceptions
     from rig.ownership import claim
     from rig.sim.rig_sim import SERVED_DEVICE_TIMEOUT_S, SimulatedRig
 
@@ -369,20 +468,35 @@ def sim_serve(
         SimulatedRig(transport=transport.value, gauge=gauge.value, profile=sensor_profile) as simulated,
     ):
         camera = simulated.serve_camera()
-        out.write_text(
-            "# Written by `rig sim serve`; valid while that process runs.\n"
-            + simulated.config_toml(device_timeout_s=SERVED_DEVICE_TIMEOUT_S)
+        written = "# Written by `rig sim serve`; valid while that process runs (removed when it stops).\n" + (
+            simulated.config_toml(device_timeout_s=SERVED_DEVICE_TIMEOUT_S)
         )
-        for name, server in simulated.servers.items():
-            typer.echo(f"{name:7s} {server.url}")
-        typer.echo(f"{'camera':7s} {camera.url}")
-        typer.echo(f"{'sensor':7s} {sensor_profile.name} ({sensor_profile.path})")
-        typer.echo(f"config  {out}   (try: rig status --config {out})")
-        typer.echo("serving; Ctrl-C stops")
         try:
-            threading.Event().wait()
-        except KeyboardInterrupt:
-            typer.echo("stopped")
+            with SignalsAsExceptions():  # SIGTERM and SIGHUP too: the config is removed either way
+                out.write_text(written)
+                for name, server in simulated.servers.items():
+                    typer.echo(f"{name:7s} {server.url}")
+                typer.echo(f"{'camera':7s} {camera.url}")
+                typer.echo(f"{'sensor':7s} {sensor_profile.name} ({sensor_profile.path})")
+                typer.echo(f"config  {out}   (try: rig status --config {out})")
+                typer.echo("serving; Ctrl-C stops")
+                threading.Event().wait()
+        except KeyboardInterrupt as exc:
+            typer.echo(f"stopped ({getattr(exc, 'signal_name', 'SIGINT')})")
+        finally:
+            _remove_if_ours(out, written)
+
+
+def _remove_if_ours(path: Path, written: str) -> None:
+    """Remove the config `rig sim serve` wrote, unless someone changed it since (then it is theirs)."""
+    try:
+        if path.read_text() == written:
+            path.unlink()
+            typer.echo(f"removed {path}")
+        else:
+            typer.echo(f"left {path} in place: it was changed after `rig sim serve` wrote it")
+    except OSError:
+        pass  # already gone, or unreadable: nothing of ours to remove
 
 
 @protocols_app.command("list")
@@ -446,8 +560,13 @@ def run_protocol_cmd(
         ),
     ] = False,
     origin: Annotated[
-        str, typer.Option(help="The contact point in axis coordinates: x,y,z (mm),theta (deg).")
-    ] = "0,0,0,0",
+        Optional[str],
+        typer.Option(
+            help="The contact point in axis coordinates: x,y,z (mm),theta (deg). Default: the origin rig "
+            "find-contact --set-origin remembered for this rig, else 0,0,0,0 (the simulated rig's contact point); "
+            "the run says which it used."
+        ),
+    ] = None,
     settings: SetOpt = None,
     config: ConfigOpt = None,
     sim: SimOpt = False,
@@ -466,7 +585,7 @@ def run_protocol_cmd(
         dry_run=dry_run,
         config=config,
         sim=sim,
-        origin=_origin(origin),
+        origin=_origin(origin) if origin is not None else None,
         settings=settings or [],
         profile=profile,
     )

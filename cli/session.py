@@ -6,7 +6,7 @@ import contextlib
 import os
 from pathlib import Path
 
-from common.errors import ConfigError
+from common.errors import ConfigError, ToolError
 
 DEFAULT_CONFIG = "rig.toml"
 
@@ -19,11 +19,14 @@ def resolve_config_path(config: Path | None) -> Path:
         return Path(env)
     if Path(DEFAULT_CONFIG).exists():
         return Path(DEFAULT_CONFIG)
-    raise ConfigError(
-        DEFAULT_CONFIG,
-        "-",
-        "no rig config: pass --config FILE, set RIG_CONFIG, or use --sim for the built-in simulated rig",
+    raise NoRigConfig(
+        f"no rig config: no --config FILE given, RIG_CONFIG not set and no ./{DEFAULT_CONFIG} here; "
+        "pass --config FILE (docs/rig.example.toml is a start) or use --sim for the built-in simulated rig"
     )
+
+
+class NoRigConfig(ToolError):
+    """No --config, no $RIG_CONFIG and no ./rig.toml."""
 
 
 @contextlib.contextmanager
@@ -35,10 +38,13 @@ def open_rig(
     gauge: bool = True,
     camera: bool | None = False,
     profile: Path | None = None,
+    discrete: bool = False,
 ):
     """Yield an open ``Rig`` with only the devices asked for; closes everything on exit.
     ``camera=None``: the camera when the config has a [camera] section. ``profile``: the
     simulated sensor's profile TOML (--sim only; default the shipped GelSight Mini).
+    ``discrete``: with --sim, the simulated rig runs on discrete-event time (as `rig
+    run-protocol --sim`): a wait advances simulated time at once, the camera renders when asked.
 
     SIGTERM and SIGHUP (and SIGINT) raise MotionInterrupted for the whole command, not
     only while something moves, so that a signal while the rig opens or closes still
@@ -51,9 +57,12 @@ def open_rig(
     check_profile_option(profile, sim)
     with SignalsAsExceptions():
         if sim:
+            from rig.clock import ManualClock
             from rig.sim.rig_sim import SimulatedRig
 
-            with SimulatedRig(profile=load_sim_profile(profile)) as simulated:
+            clock = ManualClock() if discrete else None
+            with SimulatedRig(clock, profile=load_sim_profile(profile)) as simulated:
+                simulated.triggered_camera = discrete
                 cfg = simulated.config()
                 with Rig.open(
                     cfg, simulated.clock, axes=axes, gauge=gauge, camera=_camera(cfg, camera), sim=simulated

@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+import numpy as np
 from rich.console import Console
 from rich.table import Table
 
+from cli.options import fixed
+from cli.run_display import output_console
 from rig.config.registry import kind
 from rig.types import WRENCH_COMPONENTS, WRENCH_UNITS
 
@@ -15,7 +18,7 @@ def device_line(role: str, cfg, where: str) -> str:
 
 
 def print_status(rig, console: Console | None = None) -> None:
-    console = console or Console()
+    console = console or output_console()
     st = rig.status()
     table = Table(title=f"{rig.config.name}")
     for col in ("axis", "position", "unit", "state", "homed", "travel", "warnings"):
@@ -24,7 +27,7 @@ def print_status(rig, console: Console | None = None) -> None:
         cfg = rig.config.axes[name]
         table.add_row(
             name,
-            f"{s.position:+.4f}",
+            fixed(s.position, 4),
             cfg.unit,
             s.state.value,
             "yes" if s.homed else "NO",
@@ -45,12 +48,19 @@ def print_status(rig, console: Console | None = None) -> None:
         print_camera(rig.config.camera, rig.camera.report(), console)
     if st.wrench is not None:
         values = st.wrench.as_array()
-        console.print(
-            "wrench (untared raw minus session tare): "
-            + "  ".join(f"{c} {v:+.3f} {u}" for c, v, u in zip(WRENCH_COMPONENTS, values, WRENCH_UNITS))
-        )
+        console.print("wrench as the gauge reads it (not tared): " + wrench_line(values))
+        tare = rig.state.tare
+        if tare is not None and not np.any(getattr(rig.gauge, "bias", 1.0)):
+            console.print(
+                "wrench minus the tare remembered by rig zero: " + wrench_line(values - np.asarray(tare.raw_N))
+            )
     if rig.gauge is not None and rig.guard is not None and rig.axes:
         print_safety(rig, console)
+
+
+def wrench_line(values) -> str:
+    """'Fx +0.120 N  Fy -0.080 N  …  Mz +1.500 N·mm'."""
+    return "  ".join(f"{c} {fixed(v, 3)} {u}" for c, v, u in zip(WRENCH_COMPONENTS, values, WRENCH_UNITS))
 
 
 def print_safety(rig, console: Console) -> None:
@@ -94,7 +104,7 @@ def print_safety(rig, console: Console) -> None:
     if tare is None:
         console.print("tare: none remembered (rig zero)")
     else:
-        console.print(f"tare: unloaded Fz {tare.fz_N:+.4f} N raw, taken {age_text(tare.t_unix)} (rig zero)")
+        console.print(f"tare: unloaded Fz {fixed(tare.fz_N, 4)} N raw, taken {age_text(tare.t_unix)} (rig zero)")
 
 
 def _lock(locked: bool | None, what: str, key: str) -> str:

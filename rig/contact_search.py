@@ -10,7 +10,7 @@ clear afterwards. +z is away from the gel.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Callable
 
 from rig.errors import RigError
@@ -21,6 +21,14 @@ class ContactFound:
     z_mm: float  # axis coordinate of the contact point
     fz_N: float  # the force that marked it
     resolution_mm: float  # distance z moves in one poll at the slow speed
+    at: dict[str, float] = field(default_factory=dict)  # every open axis's position at the contact (z: z_mm)
+
+    def origin(self) -> tuple[tuple[float, float, float, float], list[str]]:
+        """The contact point as ``rig run-protocol --origin`` takes it, x, y, z (mm), θ (deg), and
+        the axes it could not read (not open or not configured: 0 stands in for them)."""
+        missing = [name for name in ("x", "y", "theta") if name not in self.at]
+        values = (self.at.get("x", 0.0), self.at.get("y", 0.0), self.z_mm, self.at.get("theta", 0.0))
+        return values, missing
 
 
 def _descend_until_touch(m, z_floor: float, speed: float, threshold_N: float) -> tuple[float, float]:
@@ -67,6 +75,8 @@ def find_contact(
         m.move({"z": min(z_touch + backoff_mm, z_start)}, speed_mm_s)
         slow = speed_mm_s / 10
         z_contact, fz = _descend_until_touch(m, max(low, z_touch - backoff_mm), slow, threshold_N)
+        at = {name: axis.position() for name, axis in rig.axes.items()}
+        at["z"] = z_contact
         rig.state.remember_surface(z_contact, "find-contact")
         m.move({"z": min(z_contact + backoff_mm, z_start)}, speed_mm_s)
-    return ContactFound(z_contact, fz, slow * rig.config.safety.poll_s)
+    return ContactFound(z_contact, fz, slow * rig.config.safety.poll_s, at)

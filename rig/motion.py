@@ -347,7 +347,8 @@ class Motion(LiftAfterFailure):
             cfg = self.rig.config.axes
             self.on_start(
                 "; ".join(
-                    f"{n}: moving to {t:.4f} {cfg[n].unit} at {speeds[n]:g} {cfg[n].unit}/s" for n, t in targets.items()
+                    f"{n}: moving to {round(t, 4) + 0.0:.4f} {cfg[n].unit} at {speeds[n]:g} {cfg[n].unit}/s"
+                    for n, t in targets.items()
                 )
             )
         return guard

@@ -6,7 +6,9 @@ where the load began, whatever process it runs in. Two facts outlive a command:
 - the **tare**: the raw (untared) wrench with nothing touching, and when it was taken
   (`rig zero`, the tare before a protocol run, find-contact's tare);
 - the **gel surface**: the z (axis mm) where a load began, from `rig find-contact` or the
-  first contact a motion session saw, and how it was found.
+  first contact a motion session saw, and how it was found;
+- the **origin** (optional): the contact point x, y, z (mm), θ (deg) that `rig find-contact
+  --set-origin` stored for `rig run-protocol`, and when.
 
 They live in one small JSON file per rig config in a state folder
 (``$TACTILE_STATE_DIR``, else ``$XDG_STATE_HOME/tactile-rig``, else
@@ -69,6 +71,25 @@ class Surface:
     t_unix: float
 
 
+@dataclass(frozen=True)
+class Origin:
+    """The contact point a protocol starts from, in axis coordinates (``rig find-contact --set-origin``)."""
+
+    x_mm: float
+    y_mm: float
+    z_mm: float
+    theta_deg: float
+    t_unix: float
+
+    @property
+    def values(self) -> tuple[float, float, float, float]:
+        return (self.x_mm, self.y_mm, self.z_mm, self.theta_deg)
+
+    def text(self) -> str:
+        """'X,Y,Z,THETA' as ``--origin`` takes it."""
+        return ",".join(f"{round(v, 4) + 0.0:.4f}" for v in self.values)  # + 0.0: never "-0.0000"
+
+
 class RigState:
     """The remembered tare and gel surface of one rig; ``path`` None keeps them in memory."""
 
@@ -76,6 +97,7 @@ class RigState:
         self.path = path
         self.tare: Tare | None = None
         self.surface: Surface | None = None
+        self.origin: Origin | None = None
         if path is not None and path.exists():
             self._load(path)
 
@@ -103,6 +125,11 @@ class RigState:
             if not isinstance(how, str):
                 raise ConfigError(str(path), "surface.how", f"must be text, got {how!r}")
             self.surface = Surface(z, how, t)
+        origin = data.get("origin")
+        if origin is not None:
+            x, y, z, theta = _numbers(path, "origin.xyzt", _field(path, origin, "origin", "xyzt"), 4)
+            t = _numbers(path, "origin.t_unix", [_field(path, origin, "origin", "t_unix")], 1)[0]
+            self.origin = Origin(x, y, z, theta, t_unix=t)
 
     # -- remembering ----------------------------------------------------------------------
     def remember_tare(self, raw, t_unix: float | None = None) -> Tare:
@@ -125,6 +152,23 @@ class RigState:
         self.surface = None
         self.save()
 
+    def remember_origin(self, values, t_unix: float | None = None) -> Origin:
+        """Store the contact point x, y, z (mm), θ (deg) for ``rig run-protocol``."""
+        numbers = tuple(float(v) for v in values)
+        if len(numbers) != 4 or not all(math.isfinite(v) for v in numbers):
+            raise ValueError(f"an origin needs four finite numbers x, y, z, theta, got {list(values)!r}")
+        x, y, z, theta = numbers
+        self.origin = Origin(x, y, z, theta, t_unix=time.time() if t_unix is None else t_unix)
+        self.save()
+        return self.origin
+
+    def forget_origin(self) -> Origin | None:
+        """Forget the stored origin (a new contact was measured, or the axes changed); returns it."""
+        old, self.origin = self.origin, None
+        if old is not None:
+            self.save()
+        return old
+
     def save(self) -> None:
         if self.path is None:
             return
@@ -133,6 +177,8 @@ class RigState:
             data["tare"] = {"raw": list(self.tare.raw_N), "t_unix": self.tare.t_unix}
         if self.surface is not None:
             data["surface"] = {"z_mm": self.surface.z_mm, "how": self.surface.how, "t_unix": self.surface.t_unix}
+        if self.origin is not None:
+            data["origin"] = {"xyzt": list(self.origin.values), "t_unix": self.origin.t_unix}
         self.path.parent.mkdir(parents=True, exist_ok=True)
         tmp = self.path.with_name(f"{self.path.name}.{os.getpid()}.tmp")
         with open(tmp, "w") as f:

@@ -53,25 +53,31 @@ if [[ "$parallel" != 0 && "$parallel" != 1 ]]; then
 fi
 mkdir -p "$out/runs"
 
-# Seconds each stage takes with the defaults on a quiet 2-core machine (docs/benchmarks.md); the
-# estimate scales them by the pace of the stages finished so far (common/eta.py).
+# Seconds each stage takes with the defaults on an idle 2-core machine (docs/benchmarks.md, "The main
+# job": 22 s, 1 s, 1 s, 2 min 20 s, 36 s; 3 min 20 s in all, against 3 min 06 s to 3 min 48 s measured
+# there); the estimate scales them by the pace of the stages finished so far (common/eta.py).
 nfe=0  # network evaluations per evaluated frame: the settings' step counts added up
 IFS=, read -ra parts <<<"$settings"
 for part in "${parts[@]}"; do
     [[ "${part#*:}" =~ ^[0-9]{1,4}$ ]] && nfe=$((nfe + ${part#*:}))
 done
-collect_s=$(( ((parallel)) && ((${#objects[@]} > 1)) ? 10 * ${#objects[@]} : 15 * ${#objects[@]} ))
-expected="$collect_s,1,1,$(( 8 + steps * batch / 100 )),$(( 10 + eval_frames * nfe / 300 + eval_frames / 30 ))"
+collect_s=$(( ((parallel)) && ((${#objects[@]} > 1)) ? 11 * ${#objects[@]} : 16 * ${#objects[@]} ))
+expected="$collect_s,1,1,$(( 20 + steps * batch / 80 )),$(( 15 + eval_frames * nfe / 200 + eval_frames / 25 ))"
 names=("collect ${#objects[@]} objects" "validate" "split" "train" "evaluate")
 start=$SECONDS
 i=0
+took=()  # seconds each stage took, for the summary at the end
 stage() {
     local left
     left="$("$bin/python" -m common.eta "$expected" "$i" "$((SECONDS - start))" 2>/dev/null || echo "time left unknown")"
+    ((i > 0)) && took+=($((SECONDS - stage_start)))
+    stage_start=$SECONDS
     i=$((i + 1))
     printf '\n\033[1m[%d/%d] %s\033[0m  (%s so far, %s)\n' "$i" "${#names[@]}" "$*" \
         "$(fmt $((SECONDS - start)))" "$left"
 }
+load() { cut -d' ' -f1-3 /proc/loadavg 2>/dev/null || echo "?"; }
+load_start="$(load)"
 fmt() { if (($1 < 60)); then echo "$1 s"; else printf '%d min %02d s' $(($1 / 60)) $(($1 % 60)); fi; }
 show() { printf '\033[2m$ %s\033[0m\n' "$*"; }
 run() { show "$@"; "$@"; }
@@ -119,4 +125,11 @@ stage "evaluate on up to $eval_frames held-out frames: $settings, and the physic
 run "$bin/evaluate" --checkpoint "$out/model" --split "$out/split" --out "$out/report" --settings "$settings" \
     --limit "$eval_frames"
 
+took+=($((SECONDS - stage_start)))
+summary=""
+for k in "${!names[@]}"; do
+    summary+="${names[$k]} $(fmt "${took[$k]}"), "
+done
 printf '\n\033[1mdone in %s.\033[0m  report: %s\n' "$(fmt $((SECONDS - start)))" "$out/report/report.md"
+printf 'stages: %s; load average %s at the start, %s at the end (%s cores)\n' "${summary%, }" "$load_start" \
+    "$(load)" "$(nproc 2>/dev/null || echo ?)"

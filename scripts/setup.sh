@@ -1,20 +1,40 @@
 #!/usr/bin/env bash
 # Create (or update) the project's virtual environment in .venv.
 # torch is installed first and pinned, so that nothing later pulls a CUDA build.
+# Each step says what it does and how long it took: a fresh set-up downloads several hundred MB
+# (torch's CPU build is most of it) and takes minutes; one with nothing to do takes a second.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 PY=${PYTHON:-python3.11}
 command -v "$PY" >/dev/null 2>&1 || PY=python3
+start=$SECONDS
+step() { printf 'set-up: %s\n' "$*"; }
+took() { printf 'set-up:   done (%d s)\n' $((SECONDS - $1)); }
+
 if [ ! -x .venv/bin/python ]; then
+    t=$SECONDS
+    step "creating .venv with $("$PY" --version 2>&1)"
     "$PY" -m venv .venv
+    took "$t"
 fi
 stamp=.venv/.installed-$(sha1sum pyproject.toml | cut -c1-12)
 if [ ! -f "$stamp" ]; then
+    t=$SECONDS
+    step "updating pip"
     .venv/bin/python -m pip install -q --upgrade pip
+    took "$t"
+    t=$SECONDS
+    step "installing torch 2.13.0, the CPU build (about 200 MB to download on a first set-up; pip is quiet meanwhile)"
     .venv/bin/python -m pip install -q torch==2.13.0
+    took "$t"
+    t=$SECONDS
+    step "installing tactile-rig and its test and model extras (pyproject.toml: h5py, OpenCV, diffusers, selenium, ...)"
     .venv/bin/python -m pip install -q -e '.[dev,model]'
+    took "$t"
     rm -f .venv/.installed-*
     touch "$stamp"
+else
+    step ".venv is up to date with pyproject.toml: nothing to install"
 fi
 
 # The console's browser tests (tests/test_console.py) drive Debian's chromium through
@@ -23,9 +43,13 @@ fi
 # tests skip (outside CI).
 if ! command -v chromium >/dev/null 2>&1; then
     if [ "$(id -u)" -eq 0 ] && command -v apt-get >/dev/null 2>&1; then
+        t=$SECONDS
+        step "installing chromium and chromium-driver with apt-get (the web console's browser tests)"
         apt-get update -qq
         DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium chromium-driver >/dev/null
+        took "$t"
     else
         echo "note: chromium and chromium-driver are not installed: the web console's browser tests will skip" >&2
     fi
 fi
+step "ready in $((SECONDS - start)) s: .venv/bin/rig, dataset, train, generate, evaluate, compare"

@@ -34,11 +34,28 @@ def test_jog_to_and_speed():
     assert "x = -1.5000 mm" in result.output
 
 
-def test_jog_interactive_keys():
-    result = runner.invoke(app, ["jog", "--axis", "z", "--sim", "--key-step", "0.2"], input="++-]-q")
-    assert result.exit_code == 0, result.output
-    lines = [line for line in result.output.splitlines() if line.startswith("z = ")]
+def test_jog_interactive_keys(capsys):
+    """The keys of interactive jogging, fed as a stream (a terminal's keys arrive the same way)."""
+    import io
+
+    from cli.interactive import jog_with_keys
+    from rig.clock import ManualClock
+    from rig.rig import Rig
+    from rig.sim.rig_sim import SimulatedRig
+
+    with SimulatedRig(ManualClock()) as sim, Rig.open(sim.config(), sim.clock, axes=("z",)) as rig:
+        with rig.motion("jog") as m:
+            jog_with_keys(m, "z", 0.2, None, stream=io.StringIO("++-]-q"))
+    lines = [line for line in capsys.readouterr().out.splitlines() if line.startswith("z = ")]
     assert [line.split()[2] for line in lines] == ["5.0000", "5.2000", "5.4000", "5.2000", "3.2000"]
+
+
+def test_interactive_jog_without_a_terminal_is_refused_in_one_line():
+    result = runner.invoke(app, ["jog", "--axis", "x", "--sim"], input="")
+    assert result.exit_code == 1
+    assert result.output.strip() == (
+        "error: interactive jogging needs a terminal (stdin is not one): run it in a terminal, or give --step or --to"
+    )
 
 
 def test_soft_limit_is_one_red_line_not_a_traceback():

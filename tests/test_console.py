@@ -14,6 +14,7 @@ these tests skip locally and fail under CI (CI=true), so a missing install canno
 
 from __future__ import annotations
 
+import contextlib
 import os
 import shutil
 import tempfile
@@ -76,6 +77,12 @@ def page(driver, expr: str):
     return driver.execute_script(f"return {expr};")
 
 
+def as_shown(value: float, digits: int = 3) -> str:
+    """A number as the page prints it: fixed digits, never "-0.000"."""
+    text = f"{value:.{digits}f}"
+    return text[1:] if text.startswith("-") and float(text) == 0 else text
+
+
 QUICK_CHANGES = (
     ('name = "sphere10mm"', 'name = "console-quick"'),
     ("max_depth_mm = 1.6", "max_depth_mm = 0.4"),
@@ -93,21 +100,22 @@ def load_protocol_text(name: str = "sphere10mm") -> str:
     return load_protocol(name).text
 
 
-def record_quick_run(folder: Path) -> Path:
-    """A short simulated protocol run into ``folder`` (a press, a shear and a twist)."""
+def record_quick_run(folder: Path, name: str = "console-quick", changes=()) -> Path:
+    """A short simulated protocol run into ``folder`` (a press, a shear and a twist), named ``name``,
+    with ``changes`` (old, new) made to the quick protocol's text."""
     from acquisition.executor import Acquisition
     from cli.simulated import monitor_interval_s, simulated_rig_for
     from protocols.plan import Plan
     from protocols.spec import load_protocol
 
     text = load_protocol("sphere10mm").text
-    for old, new in QUICK_CHANGES:
+    for old, new in (*QUICK_CHANGES, ('name = "console-quick"', f'name = "{name}"'), *changes):
         assert old in text, old
         text = text.replace(old, new)
-    spec = folder / "console-quick.toml"
+    spec = folder / f"{name}.toml"
     spec.write_text(text)
     protocol = load_protocol(spec)
-    out = folder / "console-quick.h5"
+    out = folder / f"{name}.h5"
     with simulated_rig_for(protocol) as (rig, _sim, header):
         result = Acquisition(rig, Plan.of(protocol), monitor_interval_s=monitor_interval_s(protocol)).run(
             out, header=header
@@ -121,10 +129,11 @@ def runs_dir(tmp_path_factory):
     return tmp_path_factory.mktemp("runs")
 
 
-@pytest.fixture(scope="module")
-def console(runs_dir):
+@contextlib.contextmanager
+def simulated_console(runs_dir: Path, sensor: str):
+    """(url, options) of a console on its own simulated rig, served from a thread of this process."""
     _need_browser()
-    options = console_options(config=None, sim=True, live=True, runs=[runs_dir], sensor="rgb_markers")
+    options = console_options(config=None, sim=True, live=True, runs=[runs_dir], sensor=sensor)
     with serving_in_thread(options) as url:
         worker = options.worker
         assert worker is not None and worker.ready.wait(WAIT_S), "the simulated rig did not open"
@@ -132,14 +141,26 @@ def console(runs_dir):
         yield url, options
 
 
-@pytest.fixture(scope="module")
-def browser(console):
+@contextlib.contextmanager
+def browser_at(url: str):
     driver = new_browser()
     try:
-        driver.get(console[0])
+        driver.get(url)
         yield driver
     finally:
         driver.quit()
+
+
+@pytest.fixture(scope="module")
+def console(runs_dir):
+    with simulated_console(runs_dir, "rgb_markers") as served:
+        yield served
+
+
+@pytest.fixture(scope="module")
+def browser(console):
+    with browser_at(console[0]) as driver:
+        yield driver
 
 
 def axis_position(driver, axis: str) -> float:
@@ -257,6 +278,8 @@ def test_marker_flow_arrows_follow_the_shear(browser):
         assert abs(flow["meanDx"]) > 0.3 and abs(flow["meanDx"]) > 3 * abs(flow["meanDy"]), flow
         sheared[sign] = flow
         assert overlay_green_pixels(browser) > 50  # the arrows are on the canvas
+        said = browser.find_element("id", "flow-info").text
+        assert f"{flow['matched']} of {flow['markers']} markers matched, {flow['arrows']} of them moved" in said
         if sign == 1:
             screenshot(browser, "console_markers.png")
     assert sheared[1]["meanDx"] * sheared[-1]["meanDx"] < 0, sheared  # the arrows turned with the shear
@@ -327,9 +350,9 @@ def test_run_browser_shows_frame_n_and_its_wrench(browser, runs_dir):
     )
     wait_for(browser, lambda d: d.find_element("id", "run-frame").get_attribute("data-index") == str(n), "no frame")
     text = browser.find_element("id", "run-wrench").text
-    for name, value in zip(("Fx", "Fy", "Fz", "Mx", "My", "Mz"), wrench):
-        assert f"{name} {value:.3f}" in text
-    assert f"frame {n} of {n_frames}" in browser.find_element("id", "run-frame-label").text
+    for name, value, unit in zip(("Fx", "Fy", "Fz", "Mx", "My", "Mz"), wrench, ("N",) * 3 + ("N·mm",) * 3):
+        assert f"{name} {as_shown(value)} {unit}" in text
+    assert f"frame #{n} of {n_frames}" in browser.find_element("id", "run-frame-label").text
     assert not browser.find_element("id", "run-flow-label").is_displayed()  # an rgb run: no markers to follow
     # the image shown is frame n itself (decoded by the browser, compared pixel by pixel)
     shown = page(
@@ -521,7 +544,9 @@ def test_a_terminal_run_protocol_shows_live_in_the_progress_panel(browser, runs_
             if p.get("finished"):
                 break
             assert not p.get("error") and not p["stale"], p
-            assert f"{p['frame']} / {n_frames}" in card_text and p["phase"] in card_text, (p, card_text)
+            # one frame count: the file's (the latest pair's and the run browser's too), not the sidecar's
+            assert f"{p['committed']} / {n_frames} written" in card_text and p["phase"] in card_text, (p, card_text)
+            assert p["committed"] == 0 or f"frame #{p['committed'] - 1}:" in card_text, card_text
             assert "ETA" in card_text
             seen.append(p)
             if not shot and p["frame"] >= n_frames // 3 and img_index:
@@ -552,9 +577,9 @@ def test_a_terminal_run_protocol_shows_live_in_the_progress_panel(browser, runs_
     # the latest pair shown is the file's last frame and its wrench
     with open_for_reading(out) as f:
         wrench = np.asarray(f[S.WRENCH][n_frames - 1])
-    wait_for(browser, lambda d: f"frame {n_frames - 1}:" in card.text, "the last pair is not shown")
+    wait_for(browser, lambda d: f"frame #{n_frames - 1}:" in card.text, "the last pair is not shown")
     for name, value in zip(("Fx", "Fy", "Fz", "Mx", "My", "Mz"), wrench):
-        assert f"{name} {value:.3f}" in card.text
+        assert f"{name} {as_shown(value)} " in card.text
 
 
 def test_run_browser_marker_flow_against_the_reference(browser, runs_dir):
@@ -586,10 +611,10 @@ def test_run_browser_marker_flow_against_the_reference(browser, runs_dir):
 
 
 def test_a_protocol_started_from_the_page_ends_interrupted_on_stop(browser, runs_dir):
-    """The controller starts a library protocol on the console's own rig; the progress panel
-    follows it, a jog meanwhile is refused, STOP ends it as Ctrl-C would: the stages stop, z
-    is lifted to the approach height, the file ends `interrupted` naming who stopped it, and
-    the console is usable again."""
+    """The controller starts a library protocol (on --sim on its own simulated rig, on simulated
+    time, as `rig run-protocol --sim`); the progress panel follows it, a jog meanwhile is refused,
+    STOP ends it as Ctrl-C would: the stages stop, z is lifted, the file ends `interrupted` naming
+    who stopped it, and the console is usable again."""
     from selenium.webdriver.support.ui import Select
 
     from cli.console.run_progress import sidecar_path
@@ -604,10 +629,10 @@ def test_a_protocol_started_from_the_page_ends_interrupted_on_stop(browser, runs
     mine = lambda d: next(
         (p for p in page(d, "window.rigConsole.progress") if p["run"].startswith("sphere10mm-") and "frame" in p), None
     )
-    # the approach (from z = 5 mm at 0.5 mm/s) takes some seconds, then a frame a second
+    # on simulated time: the approach and the first frames take a moment, then many frames a second
     wait_for(browser, lambda d: (mine(d) or {}).get("frame", 0) >= 3, "the run never showed progress", 120)
     p = mine(browser)
-    assert p["protocol"] == "sphere10mm" and p["phase"] == "press" and p["frames"] > 100
+    assert p["protocol"] == "sphere10mm" and p["phase"] in ("press", "shear", "return") and p["frames"] > 100
     (out,) = set(runs_dir.glob("sphere10mm-*.h5")) - before
     page(browser, "(window.rigConsole.send({type: 'jog', axis: 'x', step: 1}), true)")
     wait_for(browser, lambda d: "a protocol is running" in d.find_element("id", "control-msg").text, "jog taken")

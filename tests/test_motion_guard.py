@@ -118,9 +118,11 @@ def guarded_axes(monkeypatch):
         (["jog", "--axis", "y"], "++-q", {("y", "move_to")}),
         (["home", "--axis", "z", "--axis", "theta"], None, {("z", "home"), ("theta", "home")}),
         (["find-contact", "--speed", "2"], None, {("z", "move_to")}),
+        (["check-axes"], None, {("z", "move_to"), ("x", "move_to"), ("y", "move_to"), ("theta", "move_to")}),
     ],
 )
-def test_every_moving_command_goes_through_the_session(guarded_axes, args, stdin, expected):
+def test_every_moving_command_goes_through_the_session(guarded_axes, args, stdin, expected, monkeypatch):
+    monkeypatch.setattr("cli.rig_app.stdin_is_terminal", lambda: True)  # the keys stand in for a terminal's
     result = CliRunner().invoke(app, [*args, "--sim"], input=stdin)
     assert result.exit_code == 0, result.output
     assert set(guarded_axes) == expected

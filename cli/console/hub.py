@@ -62,9 +62,15 @@ class Hub:
     # -- from the worker (through loop.call_soon_threadsafe) -----------------------------------
     def on_state(self, state: dict) -> None:
         for c in self.clients:
-            if c.state is not None:  # not yet sent: keep its wrench samples
-                state = {**state, "wrench": c.state["wrench"] + state["wrench"]}
-            c.state = state
+            pending = c.state
+            if pending is not None and not state.get("reset_trace"):  # not yet sent: keep its wrench samples
+                c.state = {
+                    **state,
+                    "wrench": pending["wrench"] + state["wrench"],
+                    "reset_trace": bool(pending.get("reset_trace")),
+                }
+            else:
+                c.state = state
             c.wake.set()
 
     def on_frame(self, frame: FrameOut) -> None:

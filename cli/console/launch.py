@@ -65,10 +65,20 @@ def run_console(
         raise ConfigError(
             "rig console", "--sensor", f"{sensor!r} is not a sensor kind: one of {', '.join(SENSOR_KINDS)}"
         )
+    if live and not sim:  # no config, or a broken one: refused here, not shown as a dead page
+        from cli.session import resolve_config_path
+        from rig.config import load_config
+
+        load_config(resolve_config_path(config))
     token = make_token(host)
     sock = bind(host, port)
     options = console_options(config=config, sim=sim, live=live, runs=runs, files=files, token=token, sensor=sensor)
-    say(f"console at {url_of(sock, host, token)}   (Ctrl-C stops; moves stop and the rig closes)")
+    say(banner(url_of(sock, host, token), live))
     if token:
         say(f"listening on {host}: the page needs the token above; share it only with people at the rig")
     serve(options, sock)
+
+
+def banner(url: str, live: bool) -> str:
+    """The first line: the address, and what Ctrl-C does (with no rig there is nothing to stop)."""
+    return f"console at {url}   (Ctrl-C stops{'; moves stop and the rig closes' if live else ''})"

@@ -1,10 +1,13 @@
 """The run browser's reads: which run files the page may open, a run's series, one frame,
 its marker flow, and the runs in progress (their sidecars and newest frames).
 
-Every request opens the file anew (``open_for_reading``: SWMR, bounded retries), so a run
-that is still being written shows the frames committed so far and grows on the next poll.
-A frame counts once its row and its image are both there (the writer commits them together,
-a reader between the two flushes sees one more of one of them).
+Every request opens the file anew through the verified reader (acquisition/run_reader.py's
+``RunReader``: SWMR with bounded retries, the schema, the attribute checksum, every row and the
+images checked at open, each frame's checksum as it is read), so a damaged file, or any other
+``*.h5`` in a listed folder, is a ``RunFileError`` naming the file, the dataset and the frame
+(the server answers it as a JSON error the page shows), never data read unchecked. A run that is
+still being written shows the frames committed so far and grows on the next poll: the reader
+counts a frame once its image is there (its row is written before it).
 """
 
 from __future__ import annotations
@@ -15,18 +18,24 @@ from pathlib import Path
 import numpy as np
 
 from acquisition import schema as S
-from acquisition.run_file import open_for_reading
-from acquisition.run_layout import decode_phases
+from acquisition.run_reader import RunReader
+from acquisition.writer_lock import RunFileError
 from cli.console.run_progress import BadProgress, read_progress, sidecar_path
 from common.errors import ToolError
 from common.sensors import has_markers
 
-ROW_FIELDS = (S.WRENCH, S.POSE_MEASURED, S.T_FRAME, S.PHASE_INDEX)
 IMAGES = {"frame": S.FRAMES, "reference": S.REFERENCE_FRAME, "object": S.OBJECT_IMAGE}
 
 
 class UnknownRun(ToolError):
     """A name the page asked for that is not one of the listed run files."""
+
+
+def refusal(exc: Exception) -> tuple[dict, int]:
+    """The page's JSON error for a read that failed, with its HTTP status: 422 for a run file the
+    verified reader refuses (damaged, malformed, not a run file), 404 for a name, kind or frame the
+    page asked for that is not there."""
+    return {"error": str(exc)}, 422 if isinstance(exc, RunFileError) else 404
 
 
 @dataclass
@@ -54,35 +63,37 @@ class RunLibrary:
         return path
 
 
-def _text(value) -> str:
-    value = value[()] if hasattr(value, "shape") else value
-    return value.decode() if isinstance(value, bytes) else str(value)
-
-
 def run_series(path: Path) -> dict:
     """The page's view of a run: header facts, and per committed frame its time (s, from the
     first frame), wrench (N, N·mm), measured pose (mm, deg) and phase; the phase names come
-    from the file's own ``phases`` attribute."""
-    with open_for_reading(path) as f:
-        n = min(f[S.FRAMES].shape[0], *(f[name].shape[0] for name in ROW_FIELDS))
-        t = np.asarray(f[S.T_FRAME][:n], dtype=np.float64)
+    from the file's own ``phases`` attribute. RunFileError when the file is not sound."""
+    with RunReader.open(path) as run:
+        n = run.n
+        t = np.asarray(run.rows[S.T_FRAME], dtype=np.float64)
         return {
             "name": path.name,
             "frames": int(n),
-            "frames_planned": int(f.attrs.get(S.ATTR_FRAMES_PLANNED, 0)),
-            "status": _text(f[S.STATUS]) if S.STATUS in f else "?",
-            "reason": _text(f[S.STATUS_REASON]) if S.STATUS_REASON in f else "",
-            "protocol": _text(f.attrs.get(S.ATTR_PROTOCOL_NAME, "")),
-            "object": _text(f.attrs.get(S.ATTR_OBJECT, "")),
-            "sensor": _text(f.attrs.get(S.ATTR_SENSOR_KIND, "")),
-            "capture_hz": float(f.attrs.get(S.ATTR_CAPTURE_HZ, 0.0)),
-            "phases": list(decode_phases(f)),
+            "frames_planned": int(run.number(S.ATTR_FRAMES_PLANNED)),
+            "status": run.status,
+            "reason": run.reason,
+            "protocol": run.text(S.ATTR_PROTOCOL_NAME),
+            "object": run.text(S.ATTR_OBJECT),
+            "sensor": run.text(S.ATTR_SENSOR_KIND),
+            "capture_hz": run.number(S.ATTR_CAPTURE_HZ),
+            "phases": list(run.phases),
             "t_s": (t - t[0]).tolist() if n else [],
-            "wrench": np.asarray(f[S.WRENCH][:n], dtype=np.float64).tolist(),
-            "pose": np.asarray(f[S.POSE_MEASURED][:n], dtype=np.float64).tolist(),
-            "phase_index": np.asarray(f[S.PHASE_INDEX][:n]).astype(int).tolist(),
-            "has": {kind: dataset in f for kind, dataset in IMAGES.items()},
+            "wrench": np.asarray(run.rows[S.WRENCH], dtype=np.float64).tolist(),
+            "pose": np.asarray(run.rows[S.POSE_MEASURED], dtype=np.float64).tolist(),
+            "phase_index": np.asarray(run.rows[S.PHASE_INDEX]).astype(int).tolist(),
+            "has": {kind: kind == "frame" or dataset in run.images for kind, dataset in IMAGES.items()},
         }
+
+
+def _frame(run: RunReader, index: int) -> np.ndarray:
+    """Frame ``index`` of ``run``, its checksum verified (RunFileError naming the frame when damaged)."""
+    if not 0 <= index < run.n:
+        raise UnknownRun(f"{run.path.name} has frames 0..{run.n - 1}, not {index}")
+    return run.frame(index)
 
 
 def run_image(path: Path, kind: str, index: int = 0) -> np.ndarray:
@@ -90,15 +101,10 @@ def run_image(path: Path, kind: str, index: int = 0) -> np.ndarray:
     dataset = IMAGES.get(kind)
     if dataset is None:
         raise UnknownRun(f"no image kind {kind!r} (one of {', '.join(IMAGES)})")
-    with open_for_reading(path) as f:
-        if dataset not in f:
-            raise UnknownRun(f"{path.name} has no {dataset}")
-        if kind != "frame":
-            return np.asarray(f[dataset][()])
-        count = f[S.FRAMES].shape[0]
-        if not 0 <= index < count:
-            raise UnknownRun(f"{path.name} has frames 0..{count - 1}, not {index}")
-        return np.asarray(f[S.FRAMES][index])
+    with RunReader.open(path) as run:
+        if kind == "frame":
+            return _frame(run, index)
+        return run.image(dataset)
 
 
 FINISHED_SHOWN_S = 600.0  # a run seen in progress stays in the panel this long after it ended
@@ -140,16 +146,16 @@ class ProgressWatch:
 
 def latest_pair(path: Path) -> dict:
     """The newest committed frame's index, wrench and measured pose, and the file's status."""
-    with open_for_reading(path) as f:
-        n = min(f[S.FRAMES].shape[0], *(f[name].shape[0] for name in ROW_FIELDS))
+    with RunReader.open(path) as run:
+        n = run.n
         return {
             "committed": int(n),
-            "frames_planned": int(f.attrs.get(S.ATTR_FRAMES_PLANNED, 0)),
-            "file_status": _text(f[S.STATUS]) if S.STATUS in f else "?",
-            "file_reason": _text(f[S.STATUS_REASON]) if S.STATUS_REASON in f else "",
-            "latest_wrench": np.asarray(f[S.WRENCH][n - 1], dtype=np.float64).tolist() if n else None,
-            "latest_pose": np.asarray(f[S.POSE_MEASURED][n - 1], dtype=np.float64).tolist() if n else None,
-            "sensor": _text(f.attrs.get(S.ATTR_SENSOR_KIND, "")),
+            "frames_planned": int(run.number(S.ATTR_FRAMES_PLANNED)),
+            "file_status": run.status,
+            "file_reason": run.reason,
+            "latest_wrench": np.asarray(run.rows[S.WRENCH][n - 1], dtype=np.float64).tolist() if n else None,
+            "latest_pose": np.asarray(run.rows[S.POSE_MEASURED][n - 1], dtype=np.float64).tolist() if n else None,
+            "sensor": run.text(S.ATTR_SENSOR_KIND),
         }
 
 
@@ -159,17 +165,12 @@ def run_flow(path: Path, index: int) -> dict:
     from cli.console.flow import ARROW_SCALE
     from sensor_sim.markers import displacements, find_markers
 
-    with open_for_reading(path) as f:
-        sensor = _text(f.attrs.get(S.ATTR_SENSOR_KIND, ""))
+    with RunReader.open(path) as run:
+        sensor = run.text(S.ATTR_SENSOR_KIND)
         if not has_markers(sensor):
             raise UnknownRun(f"{path.name}: sensor {sensor or '?'} has no markers to follow")
-        if S.REFERENCE_FRAME not in f:
-            raise UnknownRun(f"{path.name} has no {S.REFERENCE_FRAME}")
-        count = f[S.FRAMES].shape[0]
-        if not 0 <= index < count:
-            raise UnknownRun(f"{path.name} has frames 0..{count - 1}, not {index}")
-        reference = np.asarray(f[S.REFERENCE_FRAME][()])
-        frame = np.asarray(f[S.FRAMES][index])
+        reference = run.image(S.REFERENCE_FRAME)
+        frame = _frame(run, index)
     start = find_markers(reference)
     d = displacements(start, frame)
     return {"index": index, "markers": len(start), "scale": ARROW_SCALE, "vectors": np.round(d, 2).tolist()}

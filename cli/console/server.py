@@ -2,8 +2,10 @@
 
 Routes: ``/`` the page, ``/static/…`` its files, ``/ws`` the live link (state, frames, events
 out; commands and frame acks in), ``/api/info``, ``/api/stats`` (frames drawn, latency),
-``/api/runs``, ``/api/run``, ``/api/run/image`` and ``/api/run/flow`` (the run browser),
-``/api/progress`` (runs being written, from their progress sidecars).
+``/api/runs``, ``/api/run``, ``/api/run/image`` (a frame, the reference, the object image, or the
+condition: the object at a frame's pose) and ``/api/run/flow`` (the run browser), ``/api/progress``
+(runs being written, from their progress sidecars), ``/api/protocol`` (a protocol's duration, frames
+and disk with --set values, before it starts).
 
 A WebSocket message must be a JSON object with a ``type``; anything else (not JSON, an array,
 a number, binary, a field of the wrong type) is answered with a ``refused`` message naming
@@ -40,7 +42,7 @@ from starlette.websockets import WebSocket, WebSocketDisconnect
 
 from cli.console.flow import MarkerFlow
 from cli.console.hub import Client, Hub
-from cli.console.runs import ProgressWatch, RunLibrary, run_flow, run_image, run_series
+from cli.console.runs import ProgressWatch, RunLibrary, refusal, run_flow, run_image, run_series
 from cli.console.worker import Command, RigWorker
 from common.errors import ToolError
 from common.sensors import has_markers
@@ -176,8 +178,8 @@ def build_app(options: ConsoleOptions) -> Starlette:
         try:
             path = library.path(request.query_params.get("name", ""))
             return JSONResponse(await asyncio.to_thread(run_series, path))
-        except ToolError as exc:
-            return JSONResponse({"error": str(exc)}, status_code=404)
+        except ToolError as exc:  # a damaged run file: 422, its one line shown on the page
+            return _refused(exc)
 
     async def progress(_request: Request) -> Response:
         return JSONResponse(await asyncio.to_thread(options.progress.poll, time.time()))
@@ -188,19 +190,42 @@ def build_app(options: ConsoleOptions) -> Starlette:
             index = int(request.query_params.get("i", "0"))
             return JSONResponse(await asyncio.to_thread(run_flow, path, index))
         except (ToolError, ValueError) as exc:
-            return JSONResponse({"error": str(exc)}, status_code=404)
+            return _refused(exc)
 
     async def image(request: Request) -> Response:
         import cv2
 
+        headers = {"cache-control": "no-store"}
         try:
             path = library.path(request.query_params.get("name", ""))
             index = int(request.query_params.get("i", "0"))
-            picture = await asyncio.to_thread(run_image, path, request.query_params.get("kind", "frame"), index)
+            kind = request.query_params.get("kind", "frame")
+            if kind == "condition":  # the object at frame i's pose, as the model sees it
+                from cli.console.condition_view import condition_at
+
+                picture, pose = await asyncio.to_thread(condition_at, path, index)
+                headers["x-pose"] = json.dumps(pose)
+            else:
+                picture = await asyncio.to_thread(run_image, path, kind, index)
         except (ToolError, ValueError) as exc:
-            return JSONResponse({"error": str(exc)}, status_code=404)
+            return _refused(exc)
         ok, buffer = cv2.imencode(".png", picture)
-        return Response(buffer.tobytes(), media_type="image/png", headers={"cache-control": "no-store"})
+        return Response(buffer.tobytes(), media_type="image/png", headers=headers)
+
+    async def protocol_plan(request: Request) -> Response:
+        """A library protocol's duration, frames and disk with the page's --set values (checked as
+        the command line checks them), before it is started."""
+        from cli.console.protocol_run import check_settings, library_protocol, plan_summary
+
+        simulated = worker is not None and worker.simulated
+        try:
+            settings = check_settings(request.query_params.getlist("set"))
+            name = request.query_params.get("name", "")
+            protocol = await asyncio.to_thread(library_protocol, name, options.sensor, simulated, settings)
+            summary = await asyncio.to_thread(plan_summary, protocol, simulated)
+        except ToolError as exc:
+            return JSONResponse({"error": str(exc)}, status_code=400)
+        return JSONResponse(summary)
 
     async def live(websocket: WebSocket) -> None:
         if not _same_origin(websocket):
@@ -247,6 +272,7 @@ def build_app(options: ConsoleOptions) -> Starlette:
             Route("/api/run/image", image),
             Route("/api/run/flow", flow),
             Route("/api/progress", progress),
+            Route("/api/protocol", protocol_plan),
             WebSocketRoute("/ws", live),
             Mount("/static", StaticFiles(directory=STATIC), name="static"),
         ],
@@ -256,8 +282,14 @@ def build_app(options: ConsoleOptions) -> Starlette:
     return app
 
 
+def _refused(exc: Exception) -> JSONResponse:
+    """A run-browser read that failed, as the JSON error the page shows (cli/console/runs.py's ``refusal``)."""
+    body, status = refusal(exc)
+    return JSONResponse(body, status_code=status)
+
+
 def _protocols_for(worker: RigWorker) -> list[str]:
-    """The library protocols this console can start (its sensor; with --sim, its indenter)."""
+    """The library protocols this console can start (for its sensor)."""
     from cli.console.protocol_run import library_protocol
     from protocols.spec import protocol_names
 
@@ -340,15 +372,17 @@ def _handle(hub: Hub, worker: RigWorker | None, client: Client, message: dict, f
         hub.tell(client, {"type": "refused", "text": f"{kind} refused: a protocol is running (STOP ends it)"})
         return
     if kind == "run_protocol":
-        from cli.console.protocol_run import check_origin, library_protocol
+        from cli.console.protocol_run import check_origin, check_settings, library_protocol
 
         try:
             origin = check_origin(message.get("origin"))
-            protocol = library_protocol(message.get("name"), worker.sensor, simulated=worker.simulated)
+            settings = check_settings(message.get("settings"))
+            library_protocol(message.get("name"), worker.sensor, worker.simulated, settings)  # checked as the CLI does
         except ToolError as exc:
             hub.tell(client, {"type": "refused", "text": f"run protocol refused: {exc}"})
             return
-        worker.submit(Command("protocol", name=protocol.name, origin=origin, who=client.peer))
+        name = message["name"]
+        worker.submit(Command("protocol", name=name, origin=origin, settings=tuple(settings), who=client.peer))
         return
     step = _number(message.get("step"))
     if kind == "jog":
@@ -368,16 +402,31 @@ def _number(value) -> float:
         return float("nan")
 
 
+class CannotListen(ToolError):
+    """The console's address or port cannot be listened on."""
+
+
 def bind(host: str, port: int) -> socket.socket:
-    """A listening socket (port 0: any free one); raises OSError naming the address."""
+    """A listening socket (port 0: any free one); CannotListen naming the address and --port/--host."""
+    import errno
+
     family = socket.AF_INET6 if ":" in host else socket.AF_INET
     sock = socket.socket(family, socket.SOCK_STREAM)
     sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
     try:
         sock.bind((host, port))
+    except (socket.gaierror, UnicodeError) as exc:
+        sock.close()
+        raise CannotListen(f"cannot listen on {host}:{port}: {exc}; check --host") from None
     except OSError as exc:
         sock.close()
-        raise OSError(f"cannot listen on {host}:{port}: {exc.strerror}") from None
+        if exc.errno == errno.EADDRINUSE:
+            hint = "another console or program listens there: pass --port N (--port 0 takes any free port)"
+        elif exc.errno == errno.EACCES:
+            hint = "ports below 1024 need root: pass --port N above 1023 (--port 0 takes any free port)"
+        else:
+            hint = "check --host (an address of this machine, e.g. 127.0.0.1 or 0.0.0.0)"
+        raise CannotListen(f"cannot listen on {host}:{port}: {exc.strerror}; {hint}") from None
     sock.listen(64)
     sock.set_inheritable(True)
     return sock

@@ -39,7 +39,7 @@ TARE_SAMPLES = 50  # as `rig zero`
 @dataclass(frozen=True)
 class Command:
     """What a browser asked for: ``jog`` (axis, step), ``stop``, ``home`` (axis or all), ``zero``,
-    ``protocol`` (a library protocol's name and the contact origin x, y, z, theta)."""
+    ``protocol`` (a library protocol's name, the contact origin x, y, z, theta and --set values)."""
 
     kind: str
     axis: str | None = None
@@ -47,6 +47,7 @@ class Command:
     who: str = ""
     name: str = ""
     origin: tuple[float, float, float, float] | None = None
+    settings: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -127,7 +128,8 @@ class RigWorker:
         self.sensor = sensor  # the camera's sensor kind: a protocol started here must be for it
         self.simulated = simulated  # the console's own simulated rig (--sim): its indenter is fixed
         self.runs_folder = runs_folder  # where a protocol started here writes its run file
-        self._run_clock: Any = None  # the InterruptibleClock of the protocol running, if any
+        self._run_stop: Any = None  # the StopRequest of the protocol running, if any
+        self._run_rig: Any = None  # a protocol's own rig while it runs (--sim), shown in its place
         self.commands_done = 0  # commands carried out (or refused by the rig): benchmarks wait on it
         self.connect(on_state=on_state, on_event=on_event, on_frame=on_frame)
         self._commands: queue.Queue[Command | None] = queue.Queue()
@@ -143,6 +145,7 @@ class RigWorker:
         self._last_wrench_t = -np.inf
         self._last_status_t = -np.inf
         self._axes: dict[str, dict] = {}
+        self._reset_trace = False
         self.activity = ""  # what is moving now, for the page
         self.frames_sent = 0
         self.frame_tap: Callable[[int, float, np.ndarray], object] | None = None  # each raw frame (marker flow)
@@ -175,21 +178,21 @@ class RigWorker:
 
     @property
     def protocol_running(self) -> bool:
-        return self._run_clock is not None
+        return self._run_stop is not None
 
     def request_stop(self, who: str) -> None:
         """STOP (any thread): a protocol running ends as after Ctrl-C, a jog stops at its next poll."""
-        run_clock = self._run_clock
-        if run_clock is not None:
-            run_clock.request(f"STOP from {who or 'the console'}")
+        run_stop = self._run_stop
+        if run_stop is not None:
+            run_stop.request(f"STOP from {who or 'the console'}")
         self.submit(Command("stop", who=who))
 
     def close(self, timeout_s: float = 30.0) -> None:
         """Stop any move or protocol, close the rig and end the thread (bounded wait)."""
         self._closing.set()
-        run_clock = self._run_clock
-        if run_clock is not None:
-            run_clock.request("console closing")
+        run_stop = self._run_stop
+        if run_stop is not None:
+            run_stop.request("console closing")
         self._commands.put(None)
         if self._thread.is_alive():
             self._thread.join(timeout_s)
@@ -352,21 +355,32 @@ class RigWorker:
         self._on_event("info", f"homed {command.axis or 'all axes'}")
 
     def _protocol(self, command: Command) -> None:
-        from cli.console.protocol_run import InterruptibleClock, library_protocol, run_in_console
+        from cli.console.protocol_run import StopRequest, library_protocol, run_in_console
 
-        protocol = library_protocol(command.name, self.sensor, self.simulated)
+        protocol = library_protocol(command.name, self.sensor, self.simulated, list(command.settings))
         origin = command.origin or (0.0, 0.0, 0.0, 0.0)
-        clock = InterruptibleClock(self.rig.clock)
-        self.activity = f"protocol {protocol.name} (STOP ends it)"
-        self._on_event("info", f"{command.who or 'console'}: protocol {protocol.name} from origin {origin}")
+        stop = StopRequest()
+        how = " on simulated time (its own simulated rig, as rig run-protocol --sim)" if self._sim else ""
+        self.activity = f"protocol {protocol.name}{how} (STOP ends it)"
+        settings = f" with --set {' '.join(command.settings)}" if command.settings else ""
+        self._on_event(
+            "info", f"{command.who or 'console'}: protocol {protocol.name}{settings} from origin {origin}{how}"
+        )
         self._publish_state(force=True)
-        self._run_clock = clock
+        self._run_stop = stop
         try:
             out, result = run_in_console(
-                self.rig, self._sim, protocol, origin, self.runs_folder, clock, self._protocol_progress
+                self.rig,
+                self._sim,
+                protocol,
+                origin,
+                self.runs_folder,
+                stop,
+                self._protocol_progress,
+                on_run_rig=self._show_run_rig,
             )
         finally:
-            self._run_clock = None
+            self._run_stop = None
         level = {"complete": "info", "interrupted": "warn"}.get(result.status, "error")
         self._on_event(
             level,
@@ -374,13 +388,25 @@ class RigWorker:
             + (f" ({result.reason})" if result.reason else ""),
         )
 
-    def _protocol_progress(self, p) -> None:
+    def _show_run_rig(self, run_rig) -> None:
+        """A protocol's own rig (--sim) is shown in the live rig's place while it runs: its axes, and
+        its wrench on its own (simulated) time, so the trace starts afresh and again at its end."""
+        self._run_rig = run_rig
+        self._wrench.clear()
+        self._new_wrench = []
+        self._reset_trace = True
+        self._axes = {}
+        self._last_wrench_t = -np.inf
+
+    def _protocol_progress(self, p, run_rig) -> None:
         """Each frame of a protocol running here: its wrench into the trace, the axes to the page.
         Never raises: the page's view must not end a run (the executor's own checks do that)."""
         try:
-            row = [self.rig.clock.now(), *(float(v) for v in p.wrench)]
+            row = [run_rig.clock.now(), *(float(v) for v in p.wrench)]
             self._wrench.append(row)
             self._new_wrench.append(row)
+            while self._wrench and self._wrench[0][0] < row[0] - HISTORY_S:
+                self._wrench.popleft()
             self._publish_state(force=True)
         except Exception:
             self.errors_seen += 1
@@ -429,7 +455,7 @@ class RigWorker:
             self._wrench.popleft()
 
     def _publish_state(self, force: bool = False) -> None:
-        rig = self.rig
+        rig = self._run_rig or self.rig
         now = rig.clock.now()
         if not force and now - self._last_status_t < STATUS_EVERY_S:
             return
@@ -456,6 +482,10 @@ class RigWorker:
                 "activity": self.activity,
                 "errors_seen": self.errors_seen,
                 "frames_sent": self.frames_sent,
+                "reset_trace": self._reset_trace,  # the trace's rows before this one are of another clock
+                "simulated_time": self._run_rig is not None,
+                "protocol_running": self._run_stop is not None,  # the live frame pauses meanwhile
             }
         )
         self._new_wrench = []
+        self._reset_trace = False

@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Any, Mapping
 
 from common.errors import ConfigError
+from common.gauge_range import MAX_FORCE_LIMIT_N, MAX_TORQUE_LIMIT_NMM
 from common.table import Table, toml_table
 from rig.config.registry import (  # noqa: F401
     MAX_BAUDRATE,
@@ -161,12 +162,8 @@ class RigConfig:
 MAX_SPEED = (
     1000.0  # mm/s or deg/s: an order of magnitude above motorised lab stages (the simulated ones do 5 mm/s, 30 deg/s)
 )
-# The FT300 reports forces as int16 / 100 N and torques as int16 / 1000 N·m (its manual, as
-# rig/drivers/ft300.py decodes them), so it saturates at ±327.67 N and ±32 767 N·mm; its rated
-# range is ±300 N and ±30 N·m. A limit above the gauge's full scale can never trip (a NaN limit
-# once let z press on with the gauge pinned at 327 N); a tactile gel is ruined far below.
-MAX_FORCE_LIMIT_N = 300.0
-MAX_TORQUE_LIMIT_NMM = 30000.0
+# MAX_FORCE_LIMIT_N, MAX_TORQUE_LIMIT_NMM (imported above): a limit above the gauge's full scale
+# can never trip, common/gauge_range.py says why these.
 
 
 def _driver(t: Table, role: str) -> DeviceKind:

@@ -140,7 +140,10 @@ def open_port(url: str, *, baudrate: int, timeout_s: float, device: str) -> Trac
         busy = exclusive.busy_error(url, exc) if lock else None
         if busy is not None:
             raise busy from None
-        raise DeviceDisconnected(device, f"open {url}", None, f"cannot open port {url}: {exc}") from exc
+        errno = getattr(exc, "errno", None)  # pyserial's own text repeats the port twice
+        why = os.strerror(errno) if isinstance(errno, int) else str(exc)
+        port_name = "the port" if url in device else f"port {url}"  # the device's name often says which
+        raise DeviceDisconnected(device, f"open {url}", None, f"cannot open {port_name}: {why}") from exc
     fd = getattr(port, "fd", None)
     return TrackedPort(port, exclusive_tty=lock and isinstance(fd, int) and exclusive.hold(fd))
 

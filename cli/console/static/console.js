@@ -16,30 +16,72 @@ const state = {
 };
 window.rigConsole = state;
 
-function chart(target, labels, unit, colors, hooks, xRange) {
+// A number for a legend or a tick: never "-0.000".
+function fixed(v, digits) {
+  const r = Number(v).toFixed(digits);
+  return /^-0\.?0*$/.test(r) ? r.slice(1) : r;
+}
+
+// The newest value of series si (what the legend shows while the cursor is off the chart).
+function newest(u, si) {
+  const data = u.data[si] || [];
+  for (let k = data.length - 1; k >= 0; k--) if (data[k] != null) return data[k];
+  return null;
+}
+
+// A chart whose legend names each series with its unit and shows its value: at the cursor, else at
+// frame at() (the run browser's slider) or the newest one; every axis has ticks, labelled with its unit.
+function chart(target, labels, units, colors, hooks, xRange, xLabel, at) {
   const width = Math.max(320, target.clientWidth || 480);
-  const series = [{}].concat(labels.map((label, i) => ({ label, stroke: colors[i], width: 1.5 })));
-  return new uPlot(
+  const unitOf = (i) => (Array.isArray(units) ? units[i] : units);
+  const series = [{
+    label: xLabel || "t (s)",
+    value: (u, v, si, idx) => {
+      if (idx != null) return fixed(v, 2);
+      if (at && at() != null && u.data[0][at()] != null) return fixed(u.data[0][at()], 2);
+      return xRange ? "now" : "last";
+    },
+  }].concat(labels.map((label, i) => ({
+    label: `${label} (${unitOf(i)})`, stroke: colors[i], width: 1.5,
+    value: (u, v, si, idx) => {
+      const w = idx != null ? v : at && at() != null ? (u.data[si] || [])[at()] : newest(u, si);
+      return w == null ? "–" : fixed(w, 3);
+    },
+  })));
+  const yLabel = Array.isArray(units) ? Array.from(new Set(units)).join(", ") : units;
+  const ticks = (u, splits) => splits.map((v) => (v == null ? "" : fixed(v, Math.abs(v) < 10 ? 2 : 1).replace(/\.?0+$/, "") || "0"));
+  const u = new uPlot(
     {
-      width, height: 170, series, hooks: hooks || {},
+      width, height: 210, series, hooks: hooks || {},
       scales: { x: xRange ? { time: false, range: () => xRange } : { time: false } },
-      axes: [{ label: "s" }, { label: unit, size: 60 }],
+      axes: [{ label: xLabel || "s", space: 40 }, { label: yLabel, size: 60, space: 20, values: ticks }],
       legend: { live: true },
     },
     [[]].concat(labels.map(() => [])),
     target,
   );
+  return u;
+}
+
+// New data, and the legend's values with it while the cursor is off the chart.
+function setChartData(u, data) {
+  u.setData(data);
+  if (u.cursor.idx == null) u.setLegend({ idx: null });
 }
 
 // ---- the live rig -------------------------------------------------------------------------
-const live = { ws: null, ref: null, wrench: [], forces: null, moments: null, limits: null, lastDraw: 0, flowScale: 5 };
+const live = { ws: null, ref: null, wrench: [], forces: null, moments: null, limits: null, draws: [], flowScale: 5, linked: false };
+const UNITS = ["N", "N", "N", "N·mm", "N·mm", "N·mm"];
 
 function connect() {
   const ws = new WebSocket((location.protocol === "https:" ? "wss://" : "ws://") + location.host + "/ws");
   ws.binaryType = "arraybuffer";
   live.ws = ws;
-  ws.onopen = () => { if (rigUsable()) setPill($("link-status"), "live", "ok"); };
-  ws.onclose = () => { setPill($("link-status"), "disconnected: reload the page", "bad"); setControl(null); };
+  ws.onopen = () => { live.linked = true; showLink(); };
+  ws.onclose = () => {
+    live.linked = false;
+    setPill($("link-status"), "disconnected: reload the page", "bad"); setControl(null);
+  };
   ws.onmessage = (event) => {
     if (event.data instanceof ArrayBuffer) drawFrame(event.data);
     else onMessage(JSON.parse(event.data));
@@ -53,6 +95,14 @@ state.send = send;
 state.liveFz = () => live.wrench.map((r) => r[3]);
 
 function setPill(el, text, cls) { el.textContent = text; el.className = "pill " + (cls || ""); }
+
+// "live" only when the link is up and the rig is open; "no rig" when it failed or is held elsewhere.
+function showLink() {
+  const rig = state.rig ? state.rig.state : "opening";
+  if (rig === "open" && live.linked) setPill($("link-status"), "live", "ok");
+  else if (rig === "opening") setPill($("link-status"), live.linked ? "connected; opening the rig…" : "connecting…", "");
+  else if (live.linked || rig !== "open") setPill($("link-status"), "no rig", "bad");
+}
 
 async function drawFrame(buffer) {
   const n = new DataView(buffer).getUint32(0, true);
@@ -79,10 +129,15 @@ async function drawFrame(buffer) {
   state.frameT = header.t_s;
   canvas.dataset.index = String(header.index);
   canvas.dataset.count = String(state.frames);
+  // frames drawn over the last second (not the gap between two draws, which swings with every frame)
   const t = performance.now();
-  const fps = live.lastDraw ? 1000 / (t - live.lastDraw) : 0;
-  live.lastDraw = t;
-  $("frame-info").textContent = `#${header.index} · ${header.width}×${header.height} · ${fps.toFixed(1)} fps`;
+  live.draws.push(t);
+  while (live.draws.length && live.draws[0] < t - 1000) live.draws.shift();
+  const span = live.draws.length > 1 ? (t - live.draws[0]) / 1000 : 0;
+  const fps = span >= 0.5 ? (live.draws.length - 1) / span : null;
+  state.fps = fps;
+  $("frame-info").textContent = `#${header.index} · ${header.width}×${header.height} · ` +
+    (fps == null ? "– fps" : `${fps.toFixed(1)} fps (drawn, last second)`);
   send({ type: "drawn", index: header.index, t_s: header.t_s });
 }
 
@@ -124,8 +179,8 @@ function onFlow(m) {
   const info = $("flow-info");
   info.hidden = false;
   info.textContent = `marker flow of frame #${m.index} against #${m.reference_index}, arrows ×${m.scale}: ` +
-    `${summary.arrows} of ${summary.matched} matched markers moved (of ${m.markers}); ` +
-    `mean motion ${summary.meanDx.toFixed(2)}, ${summary.meanDy.toFixed(2)} px (x right, y down)`;
+    `${summary.matched} of ${m.markers} markers matched, ${summary.arrows} of them moved; ` +
+    `mean motion ${fixed(summary.meanDx, 2)}, ${fixed(summary.meanDy, 2)} px (x right, y down)`;
 }
 
 function onMessage(m) {
@@ -171,23 +226,37 @@ function setRig(m) {
   else if (m.state === "busy") {  // the pill says who; the line beside it (m.error) the whole story
     setPill(pill, `rig busy: ${m.device} held by ${m.holder_pid ? "pid " + m.holder_pid : "another process"}`, "bad");
   } else setPill(pill, m.state === "closed" ? "rig closed" : "rig failed to open", "bad");
+  showLink();
+  if (m.state === "open") { $("live").hidden = false; return; }
   if (rigUsable()) return;
   // nothing live: no frame, no jog; the header says why and who holds the device
-  setPill($("link-status"), "no rig", "bad");
   $("live").hidden = true;
   $("control-status").hidden = true;
-  if (m.error) { const e = $("rig-error"); e.hidden = false; e.textContent = m.error; }
+  if (m.error) {
+    const e = $("rig-error");
+    e.hidden = false;
+    e.textContent = m.state === "busy" ? m.error :
+      `the rig did not open: ${m.error} — no live view and no jogging; fix it, then restart rig console ` +
+      "(the run browser below works meanwhile)";
+  }
 }
 
 function onState(m) {
   state.axes = m.axes;
   live.limits = m.limits;
+  if (m.reset_trace) live.wrench = [];  // a protocol's own (simulated) clock began or ended
+  state.simulatedTime = !!m.simulated_time;
+  if (m.protocol_running) {  // the run owns the camera: no live frames until it ends
+    $("frame-info").textContent = "paused while a protocol runs (its newest frame: the progress panel above)";
+    live.draws = [];
+  }
   for (const row of m.wrench) live.wrench.push(row);
   const last = live.wrench.length ? live.wrench[live.wrench.length - 1] : null;
   if (last) {
     while (live.wrench.length && live.wrench[0][0] < last[0] - HISTORY_S) live.wrench.shift();
     state.wrench = last.slice(1);
-    $("wrench-now").textContent = COMPONENTS.map((c, i) => `${c} ${last[i + 1].toFixed(2)}`).join("  ");
+    $("wrench-now").textContent = COMPONENTS.map((c, i) => `${c} ${fixed(last[i + 1], 2)} ${UNITS[i]}`).join("  ") +
+      (m.simulated_time ? " (a protocol's simulated time)" : "");
   }
   if (m.limits) {
     $("limits").textContent = "limits: " + COMPONENTS.map((c, i) => `|${c}| ≤ ${m.limits[i]}`).join(", ") +
@@ -219,12 +288,12 @@ function renderAxes(axes) {
   for (const [name, a] of Object.entries(axes)) {
     const tr = $(`axis-${name}`);
     tr.className = a.state;
-    tr.querySelector(".pos").textContent = `${a.position.toFixed(4)} ${a.unit}`;
+    tr.querySelector(".pos").textContent = `${fixed(a.position, 4)} ${a.unit}`;
     tr.querySelector(".st").textContent = a.state;
     tr.querySelector(".homed").textContent = a.homed ? "yes" : "no";
     tr.querySelector(".travel").textContent = `${a.travel[0]} … ${a.travel[1]}`;
     tr.querySelector(".warn").textContent = a.warnings.join(" ");
-    $(`jog-${name}-pos`).textContent = a.position.toFixed(3);
+    $(`jog-${name}-pos`).textContent = fixed(a.position, 3);
   }
 }
 
@@ -233,7 +302,8 @@ function jogButton(axis, sign) {
   b.type = "button";
   b.id = `jog-${axis}-${sign > 0 ? "plus" : "minus"}`;
   b.className = "needs-control";
-  b.textContent = `${axis}${sign > 0 ? "+" : "−"}`;
+  b.textContent = `${axis === "theta" ? "θ" : axis} ${sign > 0 ? "+" : "−"}`;
+  b.title = `${axis} ${sign > 0 ? "+" : "−"} one step`;
   b.disabled = !(state.control && state.control.you);
   b.onclick = () => jog(axis, sign);
   return b;
@@ -246,16 +316,19 @@ function plotWrench() {
   const rows = live.wrench;
   const t0 = rows.length ? rows[rows.length - 1][0] : 0;
   const xs = rows.map((r) => r[0] - t0);
-  live.forces.setData([xs, ...[1, 2, 3].map((k) => rows.map((r) => r[k]))]);
-  live.moments.setData([xs, ...[4, 5, 6].map((k) => rows.map((r) => r[k]))]);
+  setChartData(live.forces, [xs, ...[1, 2, 3].map((k) => rows.map((r) => r[k]))]);
+  setChartData(live.moments, [xs, ...[4, 5, 6].map((k) => rows.map((r) => r[k]))]);
 }
 
 function setUpLive(info) {
-  $("live").hidden = false;
+  $("live").hidden = !(info.rig && info.rig.state === "open");  // shown once the rig is open
   live.markerFlow = !!info.marker_flow;
   $("marker-flow-label").hidden = !live.markerFlow;
-  live.forces = chart($("live-forces"), COMPONENTS.slice(0, 3), "N", COLORS.slice(0, 3), {}, [-HISTORY_S, 0]);
-  live.moments = chart($("live-moments"), COMPONENTS.slice(3), "N·mm", COLORS.slice(3), {}, [-HISTORY_S, 0]);
+  $("live").hidden = false;  // laid out once, so the charts get their width
+  live.forces = chart($("live-forces"), COMPONENTS.slice(0, 3), "N", COLORS.slice(0, 3), {}, [-HISTORY_S, 0], "t (s) before now");
+  live.moments = chart($("live-moments"), COMPONENTS.slice(3), "N·mm", COLORS.slice(3), {}, [-HISTORY_S, 0], "t (s) before now");
+  $("live").hidden = !(info.rig && info.rig.state === "open");
+  state.charts = { forces: live.forces, moments: live.moments };
   $("take-control").onclick = () => send({ type: "take_control" });
   $("release-control").onclick = () => send({ type: "release_control" });
   $("stop").onclick = () => send({ type: "stop" });
@@ -266,11 +339,15 @@ function setUpLive(info) {
     o.value = name; o.textContent = name;
     $("protocol-select").appendChild(o);
   }
+  if ((info.protocols || []).includes("sphere10mm")) $("protocol-select").value = "sphere10mm";  // the docs' example
   $("protocol-row").hidden = !(info.protocols || []).length;
   $("run-protocol").onclick = () => {
     const origin = $("protocol-origin").value.split(",").map((v) => Number(v.trim()));
-    send({ type: "run_protocol", name: $("protocol-select").value, origin });
+    send({ type: "run_protocol", name: $("protocol-select").value, origin, settings: protocolSettings() });
   };
+  $("protocol-select").onchange = showPlan;
+  $("protocol-set").oninput = () => { clearTimeout(live.planTimer); live.planTimer = setTimeout(showPlan, 300); };
+  showPlan();
   $("set-reference").onclick = () => { live.ref = null; if (live.markerFlow) send({ type: "set_reference" }); };
   $("marker-flow").onchange = (e) => {
     send({ type: "flow", on: e.target.checked });
@@ -278,6 +355,26 @@ function setUpLive(info) {
   };
   document.addEventListener("keydown", onKey);
   connect();
+}
+
+// ---- a protocol's plan before it starts: duration, frames, disk, with the --set values --------
+function protocolSettings() {
+  return $("protocol-set").value.split(/[;\n]/).map((v) => v.trim()).filter((v) => v);
+}
+
+async function showPlan() {
+  const name = $("protocol-select").value;
+  if (!name) return;
+  const query = [`name=${encodeURIComponent(name)}`].concat(protocolSettings().map((v) => `set=${encodeURIComponent(v)}`));
+  const plan = await fetch("api/protocol?" + query.join("&")).then((r) => r.json()).catch(() => ({ error: "no answer" }));
+  state.plan = plan;
+  const el = $("protocol-plan");
+  if (plan.error) { el.textContent = plan.error; el.className = "plan error"; return; }
+  el.className = "plan";
+  if ($("control-msg").textContent.startsWith("run protocol refused")) $("control-msg").textContent = "";
+  el.textContent = `${plan.name} (${plan.object}, ${plan.sensor}): ${plan.duration} of protocol time, ` +
+    `${plan.frames} frames at ${plan.capture_hz} Hz, ${plan.disk}` +
+    (plan.simulated_time ? "; on the simulated rig it runs on simulated time, as rig run-protocol --sim" : "");
 }
 
 const KEYS = {
@@ -330,6 +427,11 @@ function phaseBands(u) {
   }
 }
 
+function atSlider() {
+  const run = browser.run;
+  return run && run.frames ? Math.min(Number($("run-slider").value), run.frames - 1) : null;
+}
+
 function frameMarker(u) {
   const run = browser.run;
   if (!run || !run.t_s.length) return;
@@ -350,7 +452,7 @@ async function openRun(name) {
   $("run-view").hidden = false;
   $("run-flow-label").hidden = !run.sensor.endsWith("_markers");
   if (!run.sensor.endsWith("_markers")) $("run-flow").checked = false;
-  $("run-info").textContent = `${run.protocol} · ${run.object} · ${run.sensor} · ${run.frames}/${run.frames_planned} frames · ${run.status}` +
+  $("run-info").textContent = `${run.protocol} · ${run.object} · ${run.sensor} · ${run.frames} / ${run.frames_planned} frames written · ${run.status}` +
     (run.reason ? ` (${run.reason})` : "") + ` · phases: ${run.phases.join(", ")}`;
   const slider = $("run-slider");
   const wasAtEnd = Number(slider.value) >= Number(slider.max);
@@ -358,21 +460,21 @@ async function openRun(name) {
   if (fresh) {
     browser.charts.forEach((c) => c.destroy());
     const hooks = { drawClear: [phaseBands], draw: [frameMarker] };
-    browser.charts = [
-      chart($("run-forces"), COMPONENTS.slice(0, 3), "N", COLORS.slice(0, 3), hooks),
-      chart($("run-moments"), COMPONENTS.slice(3), "N·mm", COLORS.slice(3), hooks),
-      chart($("run-pose"), ["x", "y", "z", "θ"], "mm, deg", ["#d62728", "#2ca02c", "#1f77b4", "#7f7f7f"], hooks),
+    state.runCharts = browser.charts = [
+      chart($("run-forces"), COMPONENTS.slice(0, 3), "N", COLORS.slice(0, 3), hooks, null, "t (s) from the first frame", atSlider),
+      chart($("run-moments"), COMPONENTS.slice(3), "N·mm", COLORS.slice(3), hooks, null, "t (s) from the first frame", atSlider),
+      chart($("run-pose"), ["x", "y", "z", "θ"], ["mm", "mm", "mm", "deg"], ["#d62728", "#2ca02c", "#1f77b4", "#7f7f7f"],
+        hooks, null, "t (s) from the first frame", atSlider),
     ];
     $("run-reference").src = run.has.reference ? `api/run/image?kind=reference&name=${encodeURIComponent(name)}` : "";
-    $("run-object").src = run.has.object ? `api/run/image?kind=object&name=${encodeURIComponent(name)}` : "";
     slider.value = "0";
   } else if (wasAtEnd) {
     slider.value = slider.max;  // following a run being written: stay on its newest frame
   }
   const col = (rows, k) => rows.map((r) => r[k]);
-  browser.charts[0].setData([run.t_s, col(run.wrench, 0), col(run.wrench, 1), col(run.wrench, 2)]);
-  browser.charts[1].setData([run.t_s, col(run.wrench, 3), col(run.wrench, 4), col(run.wrench, 5)]);
-  browser.charts[2].setData([run.t_s, col(run.pose, 0), col(run.pose, 1), col(run.pose, 2), col(run.pose, 3)]);
+  setChartData(browser.charts[0], [run.t_s, col(run.wrench, 0), col(run.wrench, 1), col(run.wrench, 2)]);
+  setChartData(browser.charts[1], [run.t_s, col(run.wrench, 3), col(run.wrench, 4), col(run.wrench, 5)]);
+  setChartData(browser.charts[2], [run.t_s, col(run.pose, 0), col(run.pose, 1), col(run.pose, 2), col(run.pose, 3)]);
   showFrame(Number(slider.value));
   if (run.status === "running") browser.timer = setTimeout(() => openRun(name), 2000);
 }
@@ -382,14 +484,40 @@ function showFrame(i) {
   if (!run || !run.frames) return;
   const img = $("run-frame");
   img.onload = () => { img.dataset.index = String(i); };
+  img.onerror = async () => {  // a frame the server refused (damaged: 422): its one line, in place of the frame
+    const m = await fetch(img.src).then((r) => r.json()).catch(() => ({}));
+    if (m.error && Number($("run-slider").value) === i) $("run-frame-caption").textContent = m.error;
+  };
   img.src = `api/run/image?kind=frame&i=${i}&name=${encodeURIComponent(browser.name)}`;
   const w = run.wrench[i], p = run.pose[i];
-  $("run-frame-label").textContent = `frame ${i} of ${run.frames} · t = ${run.t_s[i].toFixed(2)} s · ${run.phases[run.phase_index[i]] || "?"}`;
-  $("run-wrench").textContent = COMPONENTS.map((c, k) => `${c} ${w[k].toFixed(3)}`).join("  ") +
-    `   pose x ${p[0].toFixed(3)} y ${p[1].toFixed(3)} z ${p[2].toFixed(3)} θ ${p[3].toFixed(2)}`;
+  $("run-frame-label").textContent = `frame #${i} of ${run.frames} · t = ${fixed(run.t_s[i], 2)} s · ${run.phases[run.phase_index[i]] || "?"}`;
+  $("run-wrench").textContent = COMPONENTS.map((c, k) => `${c} ${fixed(w[k], 3)} ${UNITS[k]}`).join("  ") +
+    `   pose x ${fixed(p[0], 3)} mm  y ${fixed(p[1], 3)} mm  z ${fixed(p[2], 3)} mm  θ ${fixed(p[3], 2)} deg`;
   $("run-wrench").dataset.index = String(i);
-  browser.charts.forEach((c) => c.redraw(false));
+  showCondition(i);
+  browser.charts.forEach((c) => { c.redraw(false); if (c.cursor.idx == null) c.setLegend({ idx: null }); });
   showRunFlow(i);
+}
+
+// The condition panel: the object image placed at frame i's measured pose, as the model gets it.
+async function showCondition(i) {
+  const run = browser.run, img = $("run-object"), caption = $("run-object-caption");
+  if (!run.has.object) { img.removeAttribute("src"); caption.textContent = "no object image in this run"; return; }
+  const name = browser.name;
+  const response = await fetch(`api/run/image?kind=condition&i=${i}&name=${encodeURIComponent(name)}`);
+  if (name !== browser.name || Number($("run-slider").value) !== i) return;  // the slider moved on
+  if (!response.ok) {
+    const m = await response.json().catch(() => ({}));
+    caption.textContent = m.error || "the condition could not be shown";
+    return;
+  }
+  const pose = JSON.parse(response.headers.get("x-pose") || "{}");
+  const url = URL.createObjectURL(await response.blob());
+  img.onload = () => { img.dataset.index = String(i); URL.revokeObjectURL(url); };
+  img.src = url;
+  state.condition = { index: i, ...pose };
+  caption.textContent = `object at this frame's pose (the condition): x ${fixed(pose.x_mm, 3)} mm, ` +
+    `y ${fixed(pose.y_mm, 3)} mm, θ ${fixed(pose.theta_deg, 2)} deg`;
 }
 
 async function showRunFlow(i) {
@@ -404,7 +532,7 @@ async function showRunFlow(i) {
   const summary = drawArrows(overlay, img.naturalWidth || 256, img.naturalHeight || 256, m.vectors, m.scale);
   state.runFlow = { index: i, markers: m.markers, ...summary };
   $("run-frame-caption").textContent = `frame, marker flow ×${m.scale} against the reference ` +
-    `(${summary.arrows} of ${m.markers} markers moved)` + (run ? "" : "");
+    `(${summary.matched} of ${m.markers} markers matched, ${summary.arrows} of them moved)` + (run ? "" : "");
 }
 
 // ---- runs in progress: `rig run-protocol` writing into a listed folder -------------------
@@ -439,10 +567,12 @@ function progressCard(p, i) {
     title.textContent = `${p.protocol} → ${p.run}` + (p.stale ? ` — no update for ${fmtDuration(p.age_s)}: the writer stopped?` : "");
     if (p.stale) title.className = "title error";
     const depth = p.depth_mm === null ? "" : ` (depth ${p.depth_mm.toFixed(2)} mm)`;
-    rows.push(["phase", p.phase], ["level", `${p.level}${depth}`], ["frame", `${p.frame} / ${p.frames}`],
+    // one frame count: the frames the file holds (the run browser's count too), not the sidecar's
+    const written = p.committed != null ? p.committed : p.frame;
+    rows.push(["phase", p.phase], ["level", `${p.level}${depth}`], ["frames", `${written} / ${p.frames} written`],
       ["ETA", `${fmtDuration(p.eta_s)} (protocol time ${p.t_protocol_s.toFixed(0)} of ${p.duration_s.toFixed(0)} s)`],
       ["updated", `${p.age_s.toFixed(1)} s ago`]);
-    card.querySelector("progress").value = p.frame / p.frames;
+    card.querySelector("progress").value = written / p.frames;
   }
   if (p.finished) card.querySelector("progress").value = p.frames_planned ? p.committed / p.frames_planned : 1;
   const body = card.querySelector("tbody");
@@ -458,8 +588,9 @@ function progressCard(p, i) {
   if (p.file_error) pair.textContent = p.file_error;
   else if (p.committed > 0 && p.latest_wrench) {
     const w = p.latest_wrench, q = p.latest_pose;
-    pair.textContent = `latest pair, frame ${p.committed - 1}: ` + COMPONENTS.map((c, k) => `${c} ${w[k].toFixed(3)}`).join("  ") +
-      `   pose x ${q[0].toFixed(3)} y ${q[1].toFixed(3)} z ${q[2].toFixed(3)} θ ${q[3].toFixed(2)}`;
+    pair.textContent = `latest pair, frame #${p.committed - 1}: ` +
+      COMPONENTS.map((c, k) => `${c} ${fixed(w[k], 3)} ${UNITS[k]}`).join("  ") +
+      `   pose x ${fixed(q[0], 3)} mm  y ${fixed(q[1], 3)} mm  z ${fixed(q[2], 3)} mm  θ ${fixed(q[3], 2)} deg`;
     const img = card.querySelector("img");
     const want = p.committed - 1;
     if (img.dataset.index !== String(want)) {
