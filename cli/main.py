@@ -14,13 +14,14 @@ from cli.dataset_app import app as dataset
 from cli.rig_app import app as rig
 
 model = typer.Typer(
-    help="The contact-condition-guided diffusion model: train, generate, evaluate.",
+    help="The contact-condition-guided diffusion model: train, generate, evaluate, compare.",
     no_args_is_help=True,
     add_completion=False,
 )
 model.command("train")(model_app.train)
 model.command("generate")(model_app.generate)
 model.command("evaluate")(model_app.evaluate)
+model.command("compare")(model_app.compare)
 
 app = typer.Typer(
     help="Tactile-sensing lab tool: the rig, datasets and the model.", no_args_is_help=True, add_completion=False

@@ -26,6 +26,7 @@ def one_line_errors(fn):
 
     @functools.wraps(fn)
     def wrapper(*args, **kwargs):
+        from cli.one_line import passes_through, unexpected
         from common.errors import ToolError
         from model.checkpoint import CheckpointError
 
@@ -33,8 +34,12 @@ def one_line_errors(fn):
             return fn(*args, **kwargs)
         except (ToolError, CheckpointError, ValueError, KeyError, OSError) as exc:
             message = exc.args[0] if isinstance(exc, KeyError) and exc.args else exc
-            typer.secho(f"error: {message}", fg=typer.colors.RED, err=True)
-            raise typer.Exit(1) from None
+        except Exception as exc:  # nothing expected it: still one line, naming its type (cli/one_line.py)
+            if passes_through(exc):
+                raise
+            message = unexpected(exc, "model")
+        typer.secho(f"error: {message}", fg=typer.colors.RED, err=True)
+        raise typer.Exit(1)
 
     return wrapper
 
@@ -81,6 +86,14 @@ def train(
             "needs physics conditioning). Default: the config's, else frame."
         ),
     ] = None,
+    physics_depth: Annotated[
+        Optional[str],
+        typer.Option(
+            help="Where physics conditioning renders each frame: pose (at its measured z) or force (at the depth "
+            "where the simulator's contact gives its measured Fz, so the force shapes the picture; docs/model.md). "
+            "Default: the config's, else pose."
+        ),
+    ] = None,
     steps: Annotated[Optional[int], typer.Option(help="Optimisation steps in all (default 2000).", min=1)] = None,
     batch_size: Annotated[
         Optional[int], typer.Option(help="Images per step, over all GPUs (default 16).", min=1)
@@ -115,6 +128,14 @@ def train(
             dir_okay=False,
         ),
     ] = None,
+    override_profile: Annotated[
+        bool,
+        typer.Option(
+            "--override-profile",
+            help="Render runs that record another sensor profile than --profile through --profile anyway. Default: "
+            "such a run is refused, naming both profiles.",
+        ),
+    ] = False,
     threads: Threads = None,
 ):
     """Train the denoiser; progress shows the loss and images/s; checkpoints are safetensors.
@@ -143,11 +164,12 @@ def train(
             ("conditioning", conditioning),
             ("prediction", prediction),
             ("target", target),
+            ("physics_depth", physics_depth),
         )
         if v is not None
     }
     if conditioning is None and not _names_conditioning(config):
-        model_over["conditioning"], best_target = _default_conditioning(data, sensor)
+        model_over["conditioning"], best_target = _default_conditioning(data, sensor, override_profile)
         if target is None and not _names_key(config, "target"):
             model_over["target"] = best_target
     if model_over:
@@ -163,7 +185,9 @@ def train(
     }
     cfg = TrainConfig(**{**train_fields, **{k: v for k, v in given.items() if v is not None}})
     threads_line = set_threads(threads)  # before anything runs; said once the run is set up (one-line errors)
-    trainer = build(model_cfg, cfg, data, out, device=device, log=typer.echo, profile=sensor)
+    trainer = build(
+        model_cfg, cfg, data, out, device=device, log=typer.echo, profile=sensor, override_profile=override_profile
+    )
     say = typer.echo if trainer.is_main else (lambda line: None)
     say(threads_line)
     if resume:
@@ -172,11 +196,17 @@ def train(
     say(
         f"model: {model_cfg.network}, {model_cfg.image_size} px, widths {list(model_cfg.block_out_channels)}, "
         f"{model_cfg.conditioning}"
+        + ("; physics at the depth Fz implies" if model_cfg.force_depth else "")
         + ("; target physics_residual" if model_cfg.residual else "")
         + f"; {len(trainer.data)} training frames; device {trainer.device}"
         + (f" x {trainer.acc.num_processes} processes" if trainer.acc.num_processes > 1 else "")
     )
     trainer.train()
+    if trainer.acc.num_processes > 1:  # every process says what it read: its own shard of each epoch
+        typer.echo(
+            f"process {trainer.acc.process_index} of {trainer.acc.num_processes}: read {len(trainer.read)} of "
+            f"{len(trainer.data)} training items (its share of each step's batch)"
+        )
     say(f"checkpoint: {trainer.save()}")
 
 
@@ -197,22 +227,23 @@ def _names_key(config: Path | None, key: str) -> bool:
         return False  # load_model_file reports the bad file in one line
 
 
-def _default_conditioning(split: Path, profile=None) -> tuple[str, str]:
+def _default_conditioning(split: Path, profile=None, override_profile: bool = False) -> tuple[str, str]:
     """The measured best conditioning and target for the split's sensor kind (model/config.py);
     plane+embedding and the frame, said in a line, where the best is physics and the simulator
     cannot render the split's runs (an object it does not know, a run without a sensor profile
     and no --profile)."""
-    from dataset.split import load_split
+    from dataset.split import check_unchanged, load_split
     from model.config import ModelConfig, default_conditioning, default_target
     from model.physics_condition import PhysicsUnavailable, split_spec
 
     manifest, _ = load_split(split)
+    check_unchanged(manifest, split)  # the sensor kind read back from the run files, never split.json's word alone
     kinds = {str(r.get("sensor", "")) for r in manifest["runs"]}
     kind = kinds.pop() if len(kinds) == 1 else ""
     best = default_conditioning(kind)
     if ModelConfig(conditioning=best).uses_physics:
         try:
-            split_spec(split, profile)
+            split_spec(split, profile, override=override_profile)
         except PhysicsUnavailable as exc:
             typer.echo(f"conditioning plane+embedding, not the default {best}: {exc}")
             return "plane+embedding", "frame"
@@ -335,9 +366,11 @@ def generate(
     if size is not None and size != native:
         frame = cv2.resize(frame, (size, size), interpolation=cv2.INTER_CUBIC if size > native else cv2.INTER_AREA)
         note = f"{'upsampled' if size > native else 'downsampled'} from the model's {native}x{native}"
-    if model.cfg.uses_physics and len(p) == 3:
+    if model.cfg.uses_physics and (len(p) == 3 or model.cfg.force_depth):
         z = model.physics_pose(_object_name(object_image), p, np.asarray(w))[2]
         note += f"; physics render at z {z:+.3f} mm, where the contact gives Fz {w[2]:g} N"
+        if len(p) == 4:
+            note += " (this model renders at the depth Fz implies: the z given is not used)"
     _write_png(out, frame)
     typer.echo(f"{out}: {frame.shape[1]}x{frame.shape[0]} ({note})")
 
@@ -451,6 +484,15 @@ def evaluate(
     ] = True,
     sweep_poses: Annotated[int, typer.Option(help="Poses of each part the force sweep is made at.", min=1)] = 3,
     sweep_points: Annotated[int, typer.Option(help="Values of each wrench component per sweep.", min=2)] = 7,
+    sweep_beyond: Annotated[
+        float,
+        typer.Option(
+            help="Fz is also swept at two values up to this share of its training range past the training maximum "
+            "(how the model degrades where it was never trained; 0: not).",
+            min=0.0,
+            max=10.0,
+        ),
+    ] = 1.0,
     markers: Annotated[
         Optional[bool],
         typer.Option(
@@ -488,7 +530,9 @@ def evaluate(
         raise typer.BadParameter(f"--settings: expected sampler:steps[,sampler:steps...], got {settings!r}") from None
     if any(steps < 1 for _, steps in pairs):
         raise typer.BadParameter(f"--settings {settings!r}: every step count must be at least 1")
-    sweep = SweepOptions(sweep_poses, sweep_points, pairs[0][0], pairs[0][1]) if force_sweep else None
+    sweep = (
+        SweepOptions(sweep_poses, sweep_points, pairs[0][0], pairs[0][1], beyond=sweep_beyond) if force_sweep else None
+    )
     evs = evaluate_parts(
         checkpoint,
         split,
@@ -512,7 +556,139 @@ def evaluate(
                 f"PSNR {r.psnr:5.2f}{mk}  {r.seconds_per_image:.4f} s/image"
             )
     parts = ", ".join(ev.part for ev in evs)
-    typer.echo(f"report: {report(evs, out, title=f'Evaluation of {checkpoint} on {split} ({parts})')}")
+    title = f"Evaluation of {checkpoint.resolve().name} on {split.resolve().name} ({parts})"  # names, not paths
+    typer.echo(f"report: {report(evs, out, title=title)}")
+
+
+compare_app = typer.Typer(add_completion=False)
+
+
+@compare_app.command()
+@one_line_errors
+def compare(
+    data: Annotated[Path, typer.Option(help="A split directory from `dataset split`.")],
+    out: Annotated[
+        Path,
+        typer.Option(help="Folder for compare.md, compare.json and each run (CANDIDATE/seed-S with its report)."),
+    ],
+    candidate: Annotated[
+        list[str],
+        typer.Option(
+            help="A setting to compare, repeated: a conditioning, then key=value of model fields, e.g. plane, physics, "
+            "physics,physics_depth=force,target=physics_residual."
+        ),
+    ],
+    seeds: Annotated[str, typer.Option(help="Training seeds, comma-separated (at least 2 for a spread).")] = "0,1,2",
+    config: Annotated[
+        Optional[Path], typer.Option(help="A model TOML every candidate starts from (default: the preset).")
+    ] = None,
+    preset: Annotated[Optional[str], typer.Option(help="tiny or paper (default: the config's, else tiny).")] = None,
+    image_size: Annotated[Optional[int], typer.Option(help="Image side in px (default: the preset's).", min=8)] = None,
+    steps: Annotated[Optional[int], typer.Option(help="Training steps of every run (default 2000).", min=1)] = None,
+    batch_size: Annotated[Optional[int], typer.Option(help="Images per step (default 16).", min=1)] = None,
+    lr: Annotated[Optional[float], typer.Option(help="Adam learning rate (default: the preset's).", min=0.0)] = None,
+    settings: Annotated[
+        str, typer.Option(help="Sampler settings of the evaluation, sampler:steps, comma-separated.")
+    ] = "ddim:10",
+    limit: Annotated[
+        Optional[int], typer.Option(help="At most this many frames of each part (default: all).", min=1)
+    ] = None,
+    sweep_poses: Annotated[int, typer.Option(help="Poses of each part the force sweep is made at.", min=1)] = 3,
+    sweep_points: Annotated[int, typer.Option(help="Values of each wrench component per sweep.", min=2)] = 7,
+    profile: Annotated[
+        Optional[Path],
+        typer.Option(
+            help="Sensor profile TOML for runs that record none (physics conditioning and the physics row); "
+            "default: each run's recorded one.",
+            dir_okay=False,
+        ),
+    ] = None,
+    report_only: Annotated[
+        bool,
+        typer.Option(
+            "--report-only",
+            help="Write compare.md again from the runs' saved evaluations (OUT/CANDIDATE/seed-S/report/"
+            "metrics.json); nothing is trained or evaluated, and a missing run is named.",
+        ),
+    ] = False,
+    threads: Threads = None,
+):
+    """Train every candidate setting with each seed on one split, evaluate each alike, and report per test part
+    the mean ± spread over seeds beside the baselines; a setting leads only where the difference exceeds the
+    spread."""
+    import dataclasses
+    import os
+
+    from common.machine import describe
+    from model.compare import Candidate, saved_results, summary
+    from model.compare import compare as run_compare
+    from model.compare_report import write_compare_report
+    from model.config import PRESET_TRAINING
+    from model.config import preset as make_preset
+    from model.config_file import load_model_file
+    from model.evaluate import SweepOptions
+    from model.threads import set_threads
+    from sensor_sim.profile import load_profile
+
+    threads_line = set_threads(threads)
+    cands = [Candidate.parse(c) for c in candidate]
+    try:
+        seed_list = [int(s) for s in seeds.split(",") if s.strip()]
+    except ValueError:
+        raise typer.BadParameter(f"--seeds: expected whole numbers separated by commas, got {seeds!r}") from None
+    try:
+        pairs = [(s.split(":")[0], int(s.split(":")[1])) for s in settings.split(",")]
+    except (IndexError, ValueError):
+        raise typer.BadParameter(f"--settings: expected sampler:steps[,sampler:steps...], got {settings!r}") from None
+    if config is not None:
+        base, train_fields = load_model_file(config, preset)
+    else:
+        base, train_fields = make_preset(preset or "tiny"), dict(PRESET_TRAINING.get(preset or "tiny", {}))
+    if image_size is not None:
+        base = dataclasses.replace(base, image_size=image_size)
+    given = {"steps": steps, "batch_size": batch_size, "lr": lr}
+    train_fields = {**train_fields, "sample_every": 0, **{k: v for k, v in given.items() if v is not None}}
+    train_fields.setdefault("checkpoint_every", train_fields.get("steps", 2000))
+    sensor = load_profile(profile) if profile is not None else None
+    typer.echo(threads_line)
+    evaluate_kwargs = dict(
+        settings=pairs,
+        limit=limit,
+        profile=profile,
+        sweep=SweepOptions(sweep_poses, sweep_points, pairs[0][0], pairs[0][1]),
+    )
+    if report_only:  # the runs' saved evaluations, gathered again (nothing trained or evaluated)
+        results = saved_results(cands, seed_list, out)
+    else:
+        results = run_compare(
+            cands,
+            seed_list,
+            base,
+            train_fields,
+            data,
+            out,
+            evaluate_kwargs=evaluate_kwargs,
+            profile=sensor,
+            log=typer.echo,
+        )
+    context = {
+        "split": data.resolve().name,
+        "training": f"{base.image_size} px, widths {list(base.block_out_channels)}, "
+        + ", ".join(f"{k} {v}" for k, v in train_fields.items() if k in ("steps", "batch_size", "lr"))
+        + "; the seed sets the initial weights, the data order and the noise",
+        "evaluation": f"{', '.join(f'{s}:{n}' for s, n in pairs)}, noise seed 0, "
+        + (f"at most {limit} frames per part" if limit else "every frame of each part")
+        + f"; force sweep at up to {sweep_poses} poses (firm contact, see each report), {sweep_points} values",
+        "machine": f"{describe()}; load average at the end {os.getloadavg()[0]:.1f}",
+        "runs": "each in CANDIDATE/seed-S/ with its report (report/report.md)",
+    }
+    path = write_compare_report(
+        summary(results),
+        out,
+        title=f"{len(cands)} settings × {len(seed_list)} seeds on {data.resolve().name}",
+        context=context,
+    )
+    typer.echo(f"comparison: {path}")
 
 
 def main() -> None:
@@ -525,6 +701,10 @@ def generate_main() -> None:
 
 def evaluate_main() -> None:
     evaluate_app()
+
+
+def compare_main() -> None:
+    compare_app()
 
 
 if __name__ == "__main__":  # `accelerate launch -m cli.model_app ...`

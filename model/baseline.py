@@ -23,7 +23,6 @@ at rest that the render draws itself.
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import time
 
@@ -32,6 +31,7 @@ import numpy as np
 
 from acquisition import schema as S
 from acquisition.run_reader import RunReader
+from common.sensors import has_markers
 
 
 class BaselineUnavailable(ValueError):
@@ -73,26 +73,27 @@ def profile_source(run_path: str, record: str, profile=None) -> str:
 
 
 class ObjectRender:
-    """The physics render of a library object on a square pad of ``frame_px`` pixels at
-    ``mm_per_px`` (None: the profile's own field of view), lit with ``profile``'s optics for
-    sensor ``kind``, over ``background`` (BGR, frame_px square; None: the simulator's own)."""
+    """The physics render of a library object on a pad of ``frame_px`` pixels (one number: square;
+    (width, height): any frame) at ``mm_per_px`` (None: the profile's own field of view), lit with
+    ``profile``'s optics for sensor ``kind``, over ``background`` (BGR, the frame's aspect; None:
+    the simulator's own), with the profile's camera noise when ``noise``. The render is
+    ``sensor_sim.press_render.PressRender``: the simulated rig's contact solver and renderer, the
+    one render function of the project."""
 
     def __init__(
         self,
         obj: str,
         kind: str,
         profile,
-        frame_px: int,
+        frame_px: int | tuple[int, int],
         mm_per_px: float | None,
         *,
         background: np.ndarray | None = None,
-        noise_std: float = 0.0,
+        noise: bool = False,
         where: str = "",
     ):
         from objects.indenters import INDENTERS
-        from sensor_sim.contact import SensorGeometry
-        from sensor_sim.optics import Renderer
-        from sensor_sim.world_contact import RIG_CELLS, ElastomerContact
+        from sensor_sim.press_render import PressRender
 
         if obj not in INDENTERS:
             raise BaselineUnavailable(
@@ -100,47 +101,41 @@ class ObjectRender:
                 "no physics render"
             )
         self.profile = profile
-        geometry = (
-            SensorGeometry(width_mm=frame_px * mm_per_px, height_mm=frame_px * mm_per_px, cells=RIG_CELLS)
-            if mm_per_px is not None and math.isfinite(mm_per_px) and mm_per_px > 0
-            else profile.geometry(cells=RIG_CELLS)
+        size = (frame_px, frame_px) if isinstance(frame_px, int) else tuple(frame_px)
+        scale = mm_per_px if mm_per_px is not None and math.isfinite(mm_per_px) and mm_per_px > 0 else None
+        if scale is None:  # the profile's own field of view at this frame size
+            scale = profile.width_mm / size[0]
+        self.press = PressRender(
+            profile,
+            obj,
+            kind,
+            noise=noise,
+            frame_px=(int(size[0]), int(size[1])),
+            mm_per_px=scale,
+            background=None if has_markers(kind) else background,
         )
-        self.contact = ElastomerContact(obj, profile.gel(), geometry)
-        spec = dataclasses.replace(
-            profile.optics_spec(kind), height_px=frame_px, width_px=frame_px, noise_std=noise_std
-        )
-        self.renderer = Renderer(spec, geometry, None if spec.has_markers else background, profile=profile)
+        self.contact = self.press.contact
+        self.renderer = self.press.renderer
 
     def render(self, pose_measured, wrench=None) -> np.ndarray:
-        """BGR uint8 frame, frame_px square, for a pose (x, y, z mm from the contact point, θ deg)
-        and, for a marker sensor, the measured wrench (Fx, Fy, Fz N, Mx, My, Mz N·mm): the gel's
-        tangential state is the one that carries the wrench's Fx, Fy and Mz
-        (sensor_sim/load_match.py), which is what moves the markers. Without a wrench, the pose
-        alone: the markers as if the indenter had pressed straight in."""
+        """BGR uint8 frame for a pose (x, y, z mm from the contact point, θ deg) and, for a marker
+        sensor, the measured wrench (Fx, Fy, Fz N, Mx, My, Mz N·mm): the gel's tangential state is
+        the one that carries the wrench's Fx, Fy and Mz (sensor_sim/load_match.py), which is what
+        moves the markers. Without a wrench, the pose alone: the markers as if the indenter had
+        pressed straight in."""
         from objects.pose import Pose
-        from sensor_sim.load_match import contact_at_load
 
-        self.contact.reset()  # no friction history: the load stands in for it
         x, y, z, theta = (float(v) for v in pose_measured)
-        pose = Pose(x, y, z, theta)
-        needs = self.renderer.needs()
-        if wrench is None or "uxy" not in needs:
-            return self.renderer.render(self.contact.solve(pose, needs).fields)
-        w = np.asarray(wrench, dtype=float).reshape(6)
-        match = contact_at_load(self.contact.solver, pose, (w[0], w[1], w[5]), needs)
-        return self.renderer.render(match.result.fields)
+        return self.press.render(Pose(x, y, z, theta), wrench)
 
     def pose_at_force(self, x_mm: float, y_mm: float, theta_deg: float, fz_N: float) -> np.ndarray:
         """(x, y, z, θ) with z the depth at which the object there presses with ``fz_N`` (the
         simulator's own force-depth relation; ValueError for a force it cannot give)."""
-        from sensor_sim.load_match import depth_for_force
-
-        depth = depth_for_force(self.contact.solver, x_mm, y_mm, theta_deg, fz_N)
-        return np.array([x_mm, y_mm, -depth, theta_deg])
+        return self.press.pose_at_force(x_mm, y_mm, theta_deg, fz_N)
 
 
 class PhysicsRender(ObjectRender):
-    def __init__(self, run_path: str, *, noise_std: float = 0.0, profile=None, background: str = "run"):
+    def __init__(self, run_path: str, *, noise: bool = False, profile=None, background: str = "run"):
         """A run's object, sensor and scale (see the module docstring). ``profile``: a SensorProfile
         to render with (default: the run's). ``background``: "run" (its no-contact reference frame,
         for sensors without markers) or "simulator" (the simulator's own: what the physics
@@ -153,16 +148,14 @@ class PhysicsRender(ObjectRender):
             mm_per_px = run.number(S.ATTR_MM_PER_PX)
             record = run.sensor_profile
             self.wrench = run.rows[S.WRENCH]  # every frame's recorded wrench (N, N·mm)
-        if h != w:
-            raise BaselineUnavailable(f"{run_path}: frames are {w}x{h}; the simulator renders a square pad")
         super().__init__(
             obj,
             kind,
             run_profile(run_path, record, profile),
-            w,
+            (w, h),
             mm_per_px if math.isfinite(mm_per_px) and mm_per_px > 0 else None,
             background=reference,
-            noise_std=noise_std,
+            noise=noise,
             where=run_path,
         )
 
@@ -183,7 +176,7 @@ def render_frames(
             renderers[run] = PhysicsRender(run_paths[run], profile=profile)
         wrench = wrenches[k] if wrenches is not None else renderers[run].wrench[int(frame)]
         img = renderers[run].render(pose, wrench)
-        if img.shape[0] != size:
+        if img.shape[:2] != (size, size):  # as the dataset resizes a frame (a non-square one too)
             img = cv2.resize(img, (size, size), interpolation=cv2.INTER_AREA)
         out.append(img)
     return out, (time.perf_counter() - t0) / max(1, len(out))

@@ -25,16 +25,21 @@ def build(
     device: str | None = None,
     log: Callable[[str], None] = print,
     profile=None,
+    override_profile: bool = False,
 ) -> Trainer:
     """A Trainer on the split's train part writing to ``out_dir`` (checkpoint/, samples/), logging
     through ``log`` on the main process. Raises ValueError for a split with less than one batch.
-    ``profile``: the SensorProfile of physics conditioning for runs that record none (``--profile``)."""
+    ``profile``: the SensorProfile of physics conditioning for runs that record none (``--profile``);
+    a run that records another is refused unless ``override_profile``; the profile of each run is logged."""
     physics = spec = None
     if model_cfg.uses_physics:  # the train part's physics renders, made once per size (minutes) and cached
+        from model.force_render import force_physics_cache
         from model.physics_condition import physics_cache, split_spec
 
-        spec = split_spec(split_dir, profile)  # one line for an object the simulator lacks, a run without a profile
-        physics = physics_cache(split_dir, "train", model_cfg.image_size, spec, log=log)
+        # one line for an object the simulator lacks, a run without a profile, a profile --profile contradicts
+        spec = split_spec(split_dir, profile, override=override_profile, log=log)
+        cache = force_physics_cache if model_cfg.force_depth else physics_cache  # at Fz's depth, or the pose's z
+        physics = cache(split_dir, "train", model_cfg.image_size, spec, log=log)
     data = TactileDataset(split_dir, "train", size=model_cfg.image_size, physics=physics)
     if len(data) < train_cfg.batch_size:
         raise ValueError(f"{split_dir}: {len(data)} training frames, fewer than one batch of {train_cfg.batch_size}")

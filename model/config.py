@@ -38,6 +38,11 @@ PREDICTIONS = ("epsilon", "v_prediction", "sample")
 # physics channels' render (``physics_residual``: the model learns what the calibrated simulator
 # gets wrong, and a sample is the render plus that; needs physics conditioning).
 TARGETS = ("frame", "physics_residual")
+# Where the physics channels are rendered: at the frame's measured pose z ("pose"), or at the depth
+# where the simulator's contact gives the frame's measured Fz ("force", model/force_render.py): then
+# the wrench shapes the picture the network is given, in training, in a force sweep and in
+# `generate` alike, and a force past the training range is still a physical contact.
+PHYSICS_DEPTHS = ("pose", "force")
 
 
 @dataclass(frozen=True)
@@ -55,6 +60,7 @@ class ModelConfig:
     # Measured (docs/model.md): after 1000 CPU steps y₀ gives MSE 5.2, v 63, ε 2086 (noisy frames).
     prediction: str = "sample"
     target: str = "frame"  # one of TARGETS; physics_residual measured in docs/results/markers128-physics
+    physics_depth: str = "pose"  # one of PHYSICS_DEPTHS: the physics render at the pose's z, or at Fz's depth
 
     def __post_init__(self):
         self._check_types()
@@ -72,6 +78,13 @@ class ModelConfig:
             raise ValueError(f"prediction must be one of {', '.join(PREDICTIONS)}, got {self.prediction!r}")
         if self.target not in TARGETS:
             raise ValueError(f"target must be one of {', '.join(TARGETS)}, got {self.target!r}")
+        if self.physics_depth not in PHYSICS_DEPTHS:
+            raise ValueError(f"physics_depth must be one of {', '.join(PHYSICS_DEPTHS)}, got {self.physics_depth!r}")
+        if self.physics_depth == "force" and "physics" not in parts:
+            raise ValueError(
+                f"physics_depth force renders the physics channels at the depth Fz implies: it needs physics "
+                f"conditioning; conditioning is {self.conditioning!r}"
+            )
         if self.target == "physics_residual" and "physics" not in parts:
             raise ValueError(
                 f"target physics_residual needs physics conditioning (the render it is a residual of); "
@@ -120,6 +133,11 @@ class ModelConfig:
     @property
     def uses_physics(self) -> bool:
         return "physics" in self.conditioning.split("+")
+
+    @property
+    def force_depth(self) -> bool:
+        """The physics channels are rendered at the depth the frame's Fz implies (``physics_depth``)."""
+        return self.physics_depth == "force"
 
     @property
     def residual(self) -> bool:

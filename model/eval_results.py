@@ -10,7 +10,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-PAPER_ROWS = [  # docs/reference.md, "The model, as the paper states it": real data, 0–255 scale
+from model.sweep_measures import FramesExponent
+
+# docs/reference.md, "The model, as the paper states it": the paper's own table, on its real data at 256 px;
+# reports print it in a table of its own, never among this run's rows
+PAPER_ROWS = [
     ("TACTO (RGB light)", 201.87, 10.31, 0.80, 25.43),
     ("Taxim (RGB light)", 56.715, 5.14, 0.88, 31.12),
     ("FOTS (RGB light)", 53.267, 4.91, 0.89, 32.30),
@@ -33,6 +37,9 @@ class Row:
     images: int
     marker_failures: int = 0  # frames where 18×18 markers could not be found/matched
     network_evaluations: int = 0  # forward passes of the network per image (sampler steps); 0: not the model
+    # 95 % bootstrap interval over the frames of each metric's mean (model/intervals.py): metric → (low, high)
+    ci: dict[str, tuple[float, float]] = field(default_factory=dict)
+    per_frame: dict[str, list[float]] = field(default_factory=dict)  # each frame's value of each metric
 
 
 @dataclass
@@ -54,3 +61,10 @@ class Evaluation:
     sweep_ranges: dict[str, tuple[float, float]] = field(default_factory=dict)
     sweep_note: str = ""  # how the sweep was made, or why there is none
     profiles: dict[str, str] = field(default_factory=dict)  # run file → the sensor profile its physics row used
+    baselines: list[Row] = field(default_factory=list)  # model/simple_baselines.py's rows (the physics render apart)
+    sweep_skipped: dict[str, str] = field(default_factory=dict)  # component → why it was not swept
+    sweep_poses: str = ""  # how many poses, from how many runs, in words
+    frames_exponent: FramesExponent | None = None  # k of area ∝ Fz^k across the part's real frames
+    # texture boards: {board: {row: {measure: (mean, low, high)} or why not scored}} (model/texture_eval.py)
+    texture: dict = field(default_factory=dict)
+    texture_examples: dict = field(default_factory=dict)  # board → (frames by label, contact mask, band)

@@ -18,7 +18,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
-import cv2
 import numpy as np
 
 from acquisition import schema as S
@@ -35,7 +34,12 @@ __all__ = ["PAPER_ROWS", "PHYSICS", "Evaluation", "Row", "evaluate", "evaluate_p
 
 
 def _score(setting: str, real: list[np.ndarray], made: list[np.ndarray], seconds: float, markers: bool) -> Row:
+    """The mean of each metric over the frames, its 95 % bootstrap interval over them and the
+    per-frame values (kept for the seed comparison and metrics.json)."""
+    from model.intervals import bootstrap_interval
+
     metrics = [image_metrics(r, m) for r, m in zip(real, made)]
+    per_frame = {k: [m[k] for m in metrics] for k in ("mse", "mae", "ssim", "psnr")}
     marker, failures = None, 0
     if markers:
         errors = []
@@ -45,8 +49,13 @@ def _score(setting: str, real: list[np.ndarray], made: list[np.ndarray], seconds
             except ValueError:
                 failures += 1
         marker = float(np.mean(errors)) if errors else None
-    mean = {k: float(np.mean([m[k] for m in metrics])) for k in ("mse", "mae", "ssim", "psnr")}
-    return Row(setting, mean["mse"], mean["mae"], mean["ssim"], mean["psnr"], marker, seconds, len(real), failures)
+        if errors:
+            per_frame["marker_px"] = errors
+    mean = {k: float(np.mean(v)) for k, v in per_frame.items()}
+    row = Row(setting, mean["mse"], mean["mae"], mean["ssim"], mean["psnr"], marker, seconds, len(real), failures)
+    row.per_frame = per_frame
+    row.ci = {k: bootstrap_interval(v) for k, v in per_frame.items()}
+    return row
 
 
 @dataclass
@@ -59,6 +68,7 @@ class SweepOptions:
     sampler: str = "ddim"
     steps: int = 10
     components: tuple[str, ...] = ("Fz", "Fx", "Fy", "Mz")
+    beyond: float = 1.0  # Fz also at two values up to this share of its range past the training maximum
 
 
 def evaluate(
@@ -147,6 +157,7 @@ def evaluate_part(
     ev.context = _context(model, data, part, len(items))
     ev.simulated = all(_simulated(path) for path in data.runs)
 
+    by_row: dict[str, list[np.ndarray]] = {}  # each row's frames, for the texture measure of board frames
     if baseline:
         from model.baseline import BaselineUnavailable, render_frames
         from sensor_sim.profile import load_profile
@@ -162,11 +173,17 @@ def evaluate_part(
                 log(f"physics render of {data.runs[r]}: sensor profile {sources[r]}")
             rendered, seconds = render_frames(data.runs, rows, poses, model.cfg.image_size, sensor)
             ev.baseline = _score(PHYSICS, real, rendered, seconds, markers)
+            by_row[PHYSICS] = rendered
             ev.examples[PHYSICS] = [rendered[i] for i in ex]
         except BaselineUnavailable as exc:
             ev.baseline_note = str(exc)
     else:
         ev.baseline_note = "not asked for (--no-baseline)"
+    from model.simple_baselines import simple_baselines
+
+    for name, frames in simple_baselines(split_dir, items, model.cfg.image_size, log=log).items():
+        ev.baselines.append(_score(name, real, frames, 0.0, markers))
+        by_row[f"baseline: {name}"] = frames
 
     if settings:  # warm-up: the first timed setting should not pay for first-call costs
         list(model.generate_items(items[:1], steps=2, sampler=settings[0][0], seed=seed))
@@ -187,11 +204,28 @@ def evaluate_part(
         row.network_evaluations = steps  # guidance runs both halves in one batched pass
         ev.rows.append(row)
         ev.examples[setting] = [made[i] for i in ex]
+        by_row[f"this model ({setting})"] = made
+    _texture(ev, data, items, by_row, model.cfg.image_size, log)
     if sweep is not None:
         _force_sweep(ev, model, split_dir, data, items, sweep, seed, markers, profile, log, clock)
     else:
         ev.sweep_note = "not asked for (--no-force-sweep)"
     return ev
+
+
+def _texture(ev, data: TactileDataset, items: list, by_row: dict, size_px: int, log) -> None:
+    """The texture measure of the part's texture-board frames (model/texture_eval.py), scored at
+    the run files' own resolution, beside the blurred-contact row; nothing for other objects."""
+    from model.texture_eval import board_band, texture_table
+
+    objects = [str(data.manifest["runs"][int(it["run"])].get("object", "?")) for it in items]
+    if not any(board_band(o, 1.0) is not None for o in objects):
+        return
+    log(f"{ev.part}: texture of the board frames at the run files' resolution")
+    rows = np.array([[it["run"], it["frame"]] for it in items])
+    physics = {PHYSICS: "baseline: physics render"}
+    named = {physics.get(name, name): frames for name, frames in by_row.items()}
+    ev.texture, ev.texture_examples = texture_table(data.runs, rows, objects, named, size_px)
 
 
 def _check_profiles(split_dir: str | Path, profile: str | Path | None) -> None:
@@ -227,43 +261,38 @@ def _profiles(data: TactileDataset, runs: list[int], sensor) -> dict[int, str]:
 
 def _force_sweep(ev, model, split_dir, data, items, opts: SweepOptions, seed, markers, profile, log, clock) -> None:
     """The force-response check at ``opts.poses`` poses of the part (model/force_sweep.py)."""
-    import torch
-
-    from dataset.condition import normalise_wrench
     from dataset.split import PERCENTILES
     from model import force_sweep as F
+    from model import sweep_measures as M
+    from model.sweep_references import RunData, resize
 
     pct = data.manifest.get("wrench_percentiles") or _train_percentiles(split_dir, data, PERCENTILES)
-    ranges = {name: F.training_range(pct, name) for name in opts.components}
-    runs: dict[int, F.RunData] = {}
+    ranges, ev.sweep_skipped = F.swept_ranges(pct, opts.components)
+    runs: dict[int, RunData] = {}
 
-    def run(r: int) -> F.RunData:
+    def run(r: int) -> RunData:
         if r not in runs:
-            runs[r] = F.RunData.load(data.runs[r], model.cfg.image_size)
+            runs[r] = RunData.load(data.runs[r], model.cfg.image_size)
         return runs[r]
 
     rows = np.array([[it["run"], it["frame"]] for it in items])
+    blur = max(0.5, model.cfg.image_size / 64) * (2.5 if markers else 1.0)
+    real = [uint8_tensor_to_image(it["tactile"]) for it in items]
+    backgrounds = [run(int(it["run"])).no_contact for it in items]
+    threshold, peak = M.contact_threshold(real, backgrounds, blur)
+    ev.frames_exponent = _frames_exponent(split_dir, sorted({int(r) for r in rows[:, 0]}), run, threshold, blur)
+    if not ranges:
+        ev.sweep_note = "no component has a range in the training data"
+        return
     poses = F.choose_poses(rows, lambda r: run(r).wrench, lambda r: run(r).pose, opts.poses, data.std)
     if not poses:
         ev.sweep_note = "no frame of this part is in firm contact: no force sweep"
         return
+    ev.sweep_poses = F.pose_runs(poses, {r: run(r).name for r, _ in poses})
     by_row = {(int(it["run"]), int(it["frame"])): it for it in items}
 
     def generate(p: int, wrenches: np.ndarray) -> list[np.ndarray]:
-        base = by_row[poses[p]]
-        out = []
-        for w in wrenches:  # one at a time from the same seed: every point starts from the same noise
-            it = dict(base)
-            norm = normalise_wrench(w, model.wrench_mean, model.wrench_std).astype(np.float32)
-            it["wrench"] = torch.from_numpy(norm)
-            if model.cfg.uses_physics:  # the physics channels under the swept load, not the frame's own
-                it.pop("physics", None)
-                it["wrench_raw"] = np.asarray(w, dtype=float)
-                # Fz is a depth to the physics render: a sweep that changes it renders where the
-                # simulator's contact gives it (as generate does for a pose without z)
-                it["depth_from_fz"] = bool(w[2] != run(poses[p][0]).wrench[poses[p][1]][2])
-            out += list(model.generate_items([it], steps=opts.steps, sampler=opts.sampler, seed=seed))
-        return out
+        return _sweep_frames(model, by_row[poses[p]], run(poses[p][0]).wrench[poses[p][1]], wrenches, opts, seed)
 
     renderers: dict = {}
     unavailable: list[str] = []
@@ -281,11 +310,8 @@ def _force_sweep(ev, model, split_dir, data, items, opts: SweepOptions, seed, ma
                 log(f"{ev.part}: force sweep without the physics render: {exc}")
         if renderers[r] is None:
             return None
-        img = renderers[r].render(pose, wrench)
-        size = model.cfg.image_size
-        return img if img.shape[0] == size else cv2.resize(img, (size, size), interpolation=cv2.INTER_AREA)
+        return resize(renderers[r].render(pose, wrench), model.cfg.image_size)
 
-    blur = max(0.5, model.cfg.image_size / 64) * (2.5 if markers else 1.0)
     ev.sweeps = F.run_force_sweep(
         generate,
         {r: run(r) for r, _ in poses},
@@ -293,8 +319,10 @@ def _force_sweep(ev, model, split_dir, data, items, opts: SweepOptions, seed, ma
         ranges,
         model.wrench_std,
         points=opts.points,
+        beyond=opts.beyond,
         physics=physics,
         blur_px=blur,
+        threshold=threshold,
         log=lambda line: log(f"{ev.part}: {line}"),
         clock=clock,
     )
@@ -302,16 +330,68 @@ def _force_sweep(ev, model, split_dir, data, items, opts: SweepOptions, seed, ma
     ev.sweep_ranges = ranges
     ev.sweep_note = (
         f"generated with {opts.sampler}, {opts.steps} steps, seed {seed} (the same initial noise at every point); "
-        f"{opts.points} values per component; contact: change from the run's no-contact frame above "
-        f"{F.THRESHOLD:g} (0–255) after a Gaussian blur of σ {blur:g} px"
+        f"{opts.points} values per component"
+        + (f", and for Fz two more up to {opts.beyond:g} × its range past the training maximum" if opts.beyond else "")
+        + f"; contact: change from the run's no-contact frame above {threshold:.1f} (0–255: a third of the part's "
+        f"median peak change {peak:.1f}, at least {M.THRESHOLD:g}) after a Gaussian blur of σ {blur:g} px"
         + (
             "; the physics channels rendered under each swept wrench (for Fz at the depth where the simulator's "
-            "contact gives it: a physics model sees force through the pose as well as the wrench)"
+            "contact gives it: a physics model sees force through the render as well as the wrench)"
             if model.cfg.uses_physics
             else ""
         )
         + "".join(f"; no physics render: {why}" for why in dict.fromkeys(unavailable))
     )
+
+
+REAL_EXPONENT_FRAMES = 400  # at most this many real frames (spread evenly) for the real frames' exponent
+
+
+def _frames_exponent(split_dir, runs: list[int], run, threshold: float, blur: float):
+    """k of area ∝ Fz^k across the real frames of the part's runs — every part of the split, training
+    frames too (a property of the data, not of the model: more frames, more forces), at most
+    REAL_EXPONENT_FRAMES spread evenly — measured as the sweep measures the model's frames."""
+    from dataclasses import replace
+
+    from dataset.split import load_split
+    from dataset.torch_dataset import spread
+    from model import sweep_measures as M
+
+    _, parts = load_split(split_dir)
+    rows = np.concatenate([np.asarray(p).reshape(-1, 2) for p in parts.values()])
+    rows = rows[np.isin(rows[:, 0], runs)]
+    rows = rows[spread(len(rows), REAL_EXPONENT_FRAMES)] if len(rows) > REAL_EXPONENT_FRAMES else rows
+    fz, areas = [], []
+    for r, f in rows:
+        data = run(int(r))
+        m = M.measure_contact(
+            data.frame(int(f)), data.no_contact, mm_per_px=data.mm_per_px, threshold=threshold, blur_px=blur
+        )
+        fz.append(float(data.wrench[int(f), 2]))
+        areas.append(m.area_mm2)
+    fe = M.frames_exponent(fz, areas)
+    return replace(fe, source=f"{len(rows)} real frames of the split's runs (every part), each at its own pose")
+
+
+def _sweep_frames(model: TrainedModel, base: dict, recorded: np.ndarray, wrenches: np.ndarray, opts, seed):
+    """The frames of one pose's sweep, one at a time from the same seed (every point starts from the same
+    noise); a physics model's channels rendered under each swept wrench: for Fz at the depth where the
+    simulator's contact gives it, as `generate` renders a pose given without z."""
+    import torch
+
+    from dataset.condition import normalise_wrench
+
+    out = []
+    for w in wrenches:
+        it = dict(base)
+        norm = normalise_wrench(w, model.wrench_mean, model.wrench_std).astype(np.float32)
+        it["wrench"] = torch.from_numpy(norm)
+        if model.cfg.uses_physics:  # the physics channels under the swept load, not the frame's own
+            it.pop("physics", None)
+            it["wrench_raw"] = np.asarray(w, dtype=float)
+            it["depth_from_fz"] = bool(w[2] != recorded[2])
+        out += list(model.generate_items([it], steps=opts.steps, sampler=opts.sampler, seed=seed))
+    return out
 
 
 def _train_percentiles(split_dir, data: TactileDataset, qs) -> dict:
@@ -357,6 +437,11 @@ def _context(model: TrainedModel, data: TactileDataset, part: str, frames: int) 
         "model": f"{cfg.network}, widths {list(cfg.block_out_channels)}, {cfg.layers_per_block} resnet block(s) "
         f"per level, predicts {cfg.prediction}; trained {model.trained or 'for an unrecorded number of steps'}",
         "conditioning": cfg.conditioning
+        + (
+            "; the physics channels rendered at the depth where the simulator's contact gives the frame's Fz"
+            if cfg.force_depth
+            else ("; the physics channels rendered at the frame's measured pose" if cfg.uses_physics else "")
+        )
         + (
             "; denoises the frame's difference from the physics render (target physics_residual)"
             if cfg.residual

@@ -22,7 +22,7 @@ def error_vs_time_plot(ev, path: Path) -> None:
     import matplotlib.pyplot as plt
     from matplotlib.ticker import NullFormatter
 
-    panels = [("mse", "MSE (lower is better)"), ("ssim", "SSIM (higher is better)")]
+    panels = [("mse", "MSE, 0–255² (lower is better)"), ("ssim", "SSIM (higher is better)")]
     if ev.markers:
         panels.append(("marker_px", "marker error, px per marker"))
     fig, axes = plt.subplots(1, len(panels), figsize=(4.2 * len(panels), 3.4), squeeze=False)
@@ -147,11 +147,15 @@ def _strip(images: list, size: int) -> np.ndarray:
 def force_sweep_figure(sweeps: list, path: Path) -> None:
     """One component's sweep (force_sweep.PoseSweep per pose): for each pose the generated frames across
     the sweep over the reference frames (grey: none), then area, centroid and shading against the force,
-    the model as solid lines, the reference as dashed (o: a real frame, x: the physics render)."""
+    the model as solid lines, the reference as dashed (o: a real frame, x: the physics render); a dotted
+    line marks the training maximum where the sweep goes past it."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+
+    from model.force_sweep import UNITS
+    from model.sweep_references import REAL, RENDER
 
     name = sweeps[0].component
     size = sweeps[0].images[0].shape[0]
@@ -172,12 +176,12 @@ def force_sweep_figure(sweeps: list, path: Path) -> None:
         ax.set_xticklabels([f"{v:.2f}" for v in s.values], fontsize=7)
         ax.set_yticks([size / 2, size * 1.5 + 2])
         ax.set_yticklabels(["model", "reference"], fontsize=7)
-        ax.set_title(f"pose {i + 1}: {s.label}", fontsize=7, loc="left")
+        ax.set_title(f"pose {i + 1}: {s.label}   (tiles: {name} in {UNITS[name]})", fontsize=7, loc="left")
     panels = [
         ("area_mm2", "contact area, mm²"),
         ("centroid_x_mm", "centroid x, mm"),
         ("centroid_y_mm", "centroid y, mm"),
-        ("shading", "shading, mean |change|"),
+        ("shading", "shading, mean |change| (0–255)"),
     ]
     colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
     for j, (key, label) in enumerate(panels):
@@ -185,11 +189,11 @@ def force_sweep_figure(sweeps: list, path: Path) -> None:
         for i, s in enumerate(sweeps):
             c = colours[i % len(colours)]
             ax.plot(s.values, [getattr(m, key) for m in s.model], "-", color=c, label=f"model, pose {i + 1}")
-            for marker, kind in (("o", "real"), ("x", "physics")):
+            for marker, kind in (("o", REAL), ("x", RENDER)):
                 pts = [
                     (v, getattr(m, key))
-                    for v, m, src in zip(s.values, s.reference, s.sources)
-                    if m is not None and src.startswith(kind)
+                    for v, m, k in zip(s.values, s.reference, s.kinds or [""] * len(s.values))
+                    if m is not None and k == kind
                 ]
                 if pts:
                     ax.plot(
@@ -197,9 +201,11 @@ def force_sweep_figure(sweeps: list, path: Path) -> None:
                         "--" + marker,
                         color=c,
                         markersize=4,
-                        label=f"reference ({'real frame' if kind == 'real' else 'physics render'}), pose {i + 1}",
+                        label=f"reference ({kind}), pose {i + 1}",
                     )
-        ax.set_xlabel(f"{name} (the swept value)", fontsize=8)
+            if s.inside and not all(s.inside):
+                ax.axvline(max(v for v, ok in zip(s.values, s.inside) if ok), color="grey", linestyle=":", linewidth=1)
+        ax.set_xlabel(f"{name}, {UNITS[name]} (swept)", fontsize=8)
         ax.set_ylabel(label, fontsize=8)
         ax.tick_params(labelsize=7)
         ax.grid(alpha=0.3)

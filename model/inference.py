@@ -27,9 +27,10 @@ def add_physics(items: list[dict], size: int, spec: PhysicsSpec) -> None:
     ``wrench_raw`` (N, N·mm) where it has one
     (a force sweep's), else the run's recorded one at its frame; an item marked ``depth_from_fz``
     is rendered at the depth where the simulator's contact gives that wrench's Fz (as `generate`
-    renders a pose given without z). The item keeps the render, so a second sampler setting does
-    not render it again."""
+    renders a pose given without z, model/force_render.py). The item keeps the render, so a second
+    sampler setting does not render it again."""
     from acquisition.run_reader import RunReader
+    from model.force_render import force_pose
 
     renderers: dict = {}
     recorded: dict[str, np.ndarray] = {}
@@ -45,9 +46,8 @@ def add_physics(items: list[dict], size: int, spec: PhysicsSpec) -> None:
         raw = it.get("wrench_raw")
         wrench = np.asarray(raw, dtype=float) if raw is not None else recorded[path][int(it["frame"])]
         pose = it["pose"].numpy().astype(float)
-        if it.get("depth_from_fz"):  # a force sweep's Fz: the depth where the simulator's contact gives it
-            x, y, _, theta = pose
-            pose = renderers[path].pose_at_force(x, y, theta, max(0.0, float(wrench[2])))
+        if it.get("depth_from_fz"):  # the depth where the simulator's contact gives this Fz
+            pose, _ = force_pose(renderers[path], pose, float(wrench[2]))
         it["physics"] = image_to_tensor(resize(renderers[path].render(pose, wrench), size))
 
 
@@ -67,7 +67,8 @@ def generate_items(
     """Generated frames (BGR uint8), in order, for Dataset items (their condition and wrench),
     ``batch_size`` at a time from one noise stream seeded with ``seed``. A physics-conditioned
     network gets each item's physics render: the item's own, else rendered through ``physics``
-    (the model's PhysicsSpec, ``add_physics``)."""
+    (the model's PhysicsSpec, ``add_physics``); a model whose physics channels sit at the depth Fz
+    implies (``physics_depth = "force"``) gets every render there."""
     cfg = getattr(net, "cfg", None)
     g = torch.Generator(device=device).manual_seed(seed)
     for lo in range(0, len(items), batch_size):
@@ -75,6 +76,9 @@ def generate_items(
         if cfg is not None and cfg.uses_physics and any("physics" not in it for it in chunk):
             if physics is None:
                 raise ValueError(f"a {cfg.conditioning!r} model needs its physics render's record to generate")
+            if cfg.force_depth:  # every render at the depth its Fz implies (add_physics keeps it in the item)
+                for it in chunk:
+                    it["depth_from_fz"] = True
             add_physics(chunk, cfg.image_size, physics)
         cond = scale_images(torch.stack([condition_of(it) for it in chunk]).to(device))
         wrench = torch.stack([it["wrench"] for it in chunk]).to(device)
@@ -176,14 +180,18 @@ class TrainedModel:
         return resize(render.render(self.physics_pose(object_name, pose, wrench), wrench), self.cfg.image_size)
 
     def physics_pose(self, object_name: str, pose, wrench=None) -> tuple[float, float, float, float]:
-        """(x, y, z, θ) for the physics render: z as given; for a pose of x, y, θ and a wrench, the
+        """(x, y, z, θ) for the physics render: z as given; for a pose of x, y, θ and a wrench — or
+        any pose, for a model rendered at the depth Fz implies (``physics_depth = "force"``) — the
         depth at which the object there presses with the wrench's Fz (the simulator's own
         force-depth relation through the checkpoint's sensor profile)."""
         values = [float(v) for v in pose]
-        if len(values) != 3 or wrench is None:
+        if (len(values) != 3 and not self.cfg.force_depth) or wrench is None:
             return _pose4(values, need_z=True)
         x, y, _, theta = _pose4(values, need_z=False)
-        at = self._physics_renderer(object_name).pose_at_force(x, y, theta, float(np.asarray(wrench, dtype=float)[2]))
+        fz = float(np.asarray(wrench, dtype=float)[2])
+        # asked for by a user: a force the gel cannot give (or no force) is an error naming it, never a
+        # silent deepest render (the training cache and the force sweep render past it: force_render.py)
+        at = self._physics_renderer(object_name).pose_at_force(x, y, theta, fz)
         return x, y, float(at[2]), theta
 
     def _physics_renderer(self, object_name: str):

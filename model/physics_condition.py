@@ -12,7 +12,11 @@ field. Inference renders the same image from what the checkpoint records (``Phys
 Every run of the split must show a library object (the simulator knows its shape) and share one
 sensor kind and one sensor profile, which each run records (``train --profile FILE`` gives one for
 runs that record none: a real sensor's, an import without ``--profile``; it is never guessed);
-otherwise ``PhysicsUnavailable`` says which run and why.
+otherwise ``PhysicsUnavailable`` says which run and why. ``--profile`` never silently replaces the
+profile a run records: another profile than the run's is ``ProfileMismatch``, naming both, unless
+``train --override-profile`` says so; which profile renders each run is said (``split_spec``'s ``log``).
+The split's values (object, sensor, scale, profile) are read back from the run files
+(dataset/split_manifest.py's ``check_unchanged``): an edited ``split.json`` is refused, never used.
 """
 
 from __future__ import annotations
@@ -29,11 +33,12 @@ import numpy as np
 
 from acquisition import schema as S
 from acquisition.run_reader import RunReader
+from common.errors import ToolError
 from dataset.split import check_unchanged, load_split
 from model.baseline import BaselineUnavailable, NoProfile, ObjectRender, no_profile
 
 CACHE_DIR = "physics"  # inside the split directory
-CACHE_VERSION = 2  # bump when the render or the cache layout changes: every cache is rebuilt
+CACHE_VERSION = 3  # bump when the render or the cache layout changes: every cache is rebuilt (3: issue 26 optics)
 
 
 class PhysicsUnavailable(BaselineUnavailable):
@@ -44,6 +49,11 @@ class PhysicsNoProfile(PhysicsUnavailable, NoProfile):
     """Physics conditioning of a run that records no sensor profile, with no ``--profile`` given."""
 
 
+class ProfileMismatch(ToolError):
+    """``--profile`` gives another profile than a run records, without ``--override-profile``: an error,
+    not a reason to fall back to other conditioning."""
+
+
 @dataclass(frozen=True)
 class PhysicsSpec:
     """What renders a split's physics channels; recorded in a physics model's checkpoint."""
@@ -52,6 +62,7 @@ class PhysicsSpec:
     profile_record: str  # the profile's record: the runs' sensor_profile attribute, or train --profile's
     mm_per_px: float  # the frames' scale...
     frame_px: int  # ...at this many pixels across (the render's size before resizing)
+    frame_height_px: int | None = None  # ...and down; None: frame_px (square, as every spec before it)
 
     def profile(self, where: str = "checkpoint"):
         from sensor_sim.profile import ProfileError, profile_from_record
@@ -69,7 +80,12 @@ class PhysicsSpec:
 
     def renderer(self, obj: str, where: str = "") -> ObjectRender:
         return ObjectRender(
-            obj, self.sensor_kind, self.profile(where or "checkpoint"), self.frame_px, self.mm_per_px, where=where
+            obj,
+            self.sensor_kind,
+            self.profile(where or "checkpoint"),
+            (self.frame_px, self.frame_height_px or self.frame_px),
+            self.mm_per_px,
+            where=where,
         )
 
     @classmethod
@@ -84,20 +100,29 @@ class PhysicsSpec:
             raise PhysicsUnavailable(f"{where}: [physics] mm_per_px expected a positive number, got {mm!r}")
         if not (isinstance(px, int) and not isinstance(px, bool) and 8 <= px <= 8192):
             raise PhysicsUnavailable(f"{where}: [physics] frame_px expected a whole number in [8, 8192], got {px!r}")
-        return cls(kind, record, float(mm), px)
+        tall = raw.get("frame_height_px")  # absent or None: a square frame (checkpoints before non-square ones)
+        if tall is not None and not (isinstance(tall, int) and not isinstance(tall, bool) and 8 <= tall <= 8192):
+            raise PhysicsUnavailable(
+                f"{where}: [physics] frame_height_px expected a whole number in [8, 8192], got {tall!r}"
+            )
+        return cls(kind, record, float(mm), px, tall)
 
     def to_meta(self) -> dict:
         return asdict(self)
 
 
-def split_spec(split_dir: str | Path, profile=None) -> PhysicsSpec:
+def split_spec(
+    split_dir: str | Path, profile=None, *, override: bool = False, log: Callable[[str], None] = lambda line: None
+) -> PhysicsSpec:
     """The split's PhysicsSpec, or PhysicsUnavailable naming the run the simulator cannot render.
     ``profile``: a SensorProfile for every run (``train --profile``); default: each run's recorded
-    one, which must be the same for all (a run that records none: PhysicsNoProfile)."""
+    one, which must be the same for all (a run that records none: PhysicsNoProfile). A run that
+    records another profile than ``profile``: ProfileMismatch unless ``override``. ``log`` hears
+    which profile renders each run."""
     from objects.indenters import INDENTERS
 
     manifest, _ = load_split(split_dir)
-    check_unchanged(manifest, split_dir)
+    check_unchanged(manifest, split_dir)  # the runs' values read back from the files, not split.json's word
     specs = set()
     for run in manifest["runs"]:
         path = run["path"]
@@ -108,13 +133,13 @@ def split_spec(split_dir: str | Path, profile=None) -> PhysicsSpec:
                 f"{path}: object {obj!r} is not one the simulator knows ({', '.join(INDENTERS)}): no physics "
                 "render, so no physics conditioning; train with --conditioning plane+embedding"
             )
-        if h != w:
-            raise PhysicsUnavailable(f"{path}: frames are {w}x{h}; the simulator renders a square pad")
-        record = profile.record() if profile is not None else run["sensor_profile"]
+        recorded = run["sensor_profile"]
+        log(f"{path}: physics conditioning through sensor profile {_source(path, recorded, profile, override)}")
+        record = profile.record() if profile is not None else recorded
         if not record.strip():
             raise PhysicsNoProfile(str(no_profile(path, "physics conditioning", "train --profile FILE")))
         mm = float(run["mm_per_px"])
-        specs.add(PhysicsSpec(run["sensor"], record, mm, int(w)))
+        specs.add(PhysicsSpec(run["sensor"], record, mm, int(w), int(h)))
     if len(specs) != 1:
         detail = "; ".join(f"{s.sensor_kind}, {s.mm_per_px:g} mm/px, {s.frame_px} px" for s in specs)
         raise PhysicsUnavailable(
@@ -124,6 +149,36 @@ def split_spec(split_dir: str | Path, profile=None) -> PhysicsSpec:
     spec = specs.pop()
     spec.profile(str(split_dir))  # a recorded profile that cannot be found again: one line now
     return spec
+
+
+def _source(path: str, recorded: str, profile, override: bool) -> str:
+    """Which profile renders a run, in words; ProfileMismatch for ``profile`` over another recorded one
+    unless ``override``."""
+    from sensor_sim.profile import ProfileError, parse_record
+
+    if not recorded.strip():
+        if profile is None:
+            return "none (the run records none)"
+        return f"{_named(profile)} (given by --profile; the run records none)"
+    try:
+        rec = parse_record(recorded, where=path)
+    except ProfileError as exc:
+        raise PhysicsUnavailable(str(exc)) from None
+    mine = f"{rec['name']} (sha256 {rec['sha256'][:12]}…, file {rec['file'] or '?'})"
+    if profile is None:
+        return f"{mine} (recorded in the run)"
+    if profile.content_hash() == rec["sha256"]:
+        return f"{mine} (recorded in the run; --profile gives the same)"
+    if not override:
+        raise ProfileMismatch(
+            f"{path}: records sensor profile {mine}, but --profile gives {_named(profile)}; leave --profile out to "
+            "use the run's, or pass --override-profile to render this run through the given one"
+        )
+    return f"{_named(profile)} (given by --profile over the run's recorded {mine}: --override-profile)"
+
+
+def _named(profile) -> str:
+    return f"{profile.name} (sha256 {profile.content_hash()[:12]}…, file {profile.path})"
 
 
 def cache_key(split_dir: str | Path, part: str, size: int, spec: PhysicsSpec) -> dict:
@@ -143,6 +198,35 @@ def cache_path(split_dir: str | Path, part: str, size: int) -> Path:
     return Path(split_dir) / CACHE_DIR / f"{part}-{size}px.npy"
 
 
+def cache_fresh(path: Path, key: dict, log: Callable[[str], None]) -> bool:
+    """Whether the render cache ``path`` exists with the .json key ``key`` beside it; a stale
+    one (another split, size or profile) is said in ``log`` and is to be rebuilt."""
+    meta = path.with_suffix(".json")
+    if not (path.is_file() and meta.is_file()):
+        return False
+    try:
+        if json.loads(meta.read_text()) == key:
+            return True
+    except (OSError, json.JSONDecodeError):
+        pass
+    log(f"physics render cache {path}: stale (the split, size or profile changed); rebuilding")
+    return False
+
+
+def write_cache(path: Path, images: np.ndarray, key: dict) -> None:
+    """The render cache and its key beside it. Each file replaced whole, images first: a reader
+    (another process of a multi-GPU run, which renders the same images) never sees half a file,
+    and a crash before the key leaves the old key, which no longer matches: the next run rebuilds."""
+    meta = path.with_suffix(".json")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f"{path.stem}.{os.getpid()}.tmp.npy")
+    np.save(tmp, images)
+    os.replace(tmp, path)
+    tmp_meta = meta.with_name(f"{meta.stem}.{os.getpid()}.tmp.json")
+    tmp_meta.write_text(json.dumps(key, indent=1) + "\n")
+    os.replace(tmp_meta, meta)
+
+
 def physics_cache(
     split_dir: str | Path,
     part: str,
@@ -156,14 +240,8 @@ def physics_cache(
     the key differs (other runs, rows, size, profile or render version). Returns the .npy's path."""
     path = cache_path(split_dir, part, size)
     key = cache_key(split_dir, part, size, spec or split_spec(split_dir))
-    meta = path.with_suffix(".json")
-    if path.is_file() and meta.is_file():
-        try:
-            if json.loads(meta.read_text()) == key:
-                return path
-        except (OSError, json.JSONDecodeError):
-            pass
-        log(f"physics render cache {path}: stale (the split, size or profile changed); rebuilding")
+    if cache_fresh(path, key, log):
+        return path
     manifest, parts = load_split(split_dir)
     rows = parts[part]
     spec = PhysicsSpec(**key["spec"])
@@ -185,19 +263,10 @@ def physics_cache(
         images[k] = resize(renderers[run].render(poses[run][int(frame)], wrenches[run][int(frame)]), size)
         if (k + 1) % step == 0 or k + 1 == len(rows):
             log(f"  physics render: {k + 1}/{len(rows)} frames")
-    # Each file replaced whole, images first: a reader (another process of a multi-GPU run, which
-    # renders the same images) never sees half a file, and a crash before the key leaves the old
-    # key, which no longer matches: the next run rebuilds.
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f"{path.stem}.{os.getpid()}.tmp.npy")
-    np.save(tmp, images)
-    os.replace(tmp, path)
-    tmp_meta = meta.with_name(f"{meta.stem}.{os.getpid()}.tmp.json")
-    tmp_meta.write_text(json.dumps(key, indent=1) + "\n")
-    os.replace(tmp_meta, meta)
+    write_cache(path, images, key)
     return path
 
 
 def resize(bgr: np.ndarray, size: int) -> np.ndarray:
     """As the dataset resizes a frame to the model's size."""
-    return bgr if bgr.shape[0] == size else cv2.resize(bgr, (size, size), interpolation=cv2.INTER_AREA)
+    return bgr if bgr.shape[:2] == (size, size) else cv2.resize(bgr, (size, size), interpolation=cv2.INTER_AREA)

@@ -17,7 +17,11 @@ takes the same steps with the same losses as an uninterrupted one.
 Several GPUs or nodes: ``accelerate launch -m cli.model_app ...`` (or ``accelerate launch
 $(which train) ...``) runs this same loop in each process; each takes its share of the
 step's batch (the global batch and its order are the single-process ones), the gradients
-are averaged by accelerate, and callbacks act on the main process only (``is_main``).
+are averaged by accelerate, and callbacks act on the main process only (``is_main``). A process
+reads from the Dataset only the items of its share (``read``: their indices): within an epoch the
+processes' items are disjoint, so each reads its own shard of the data. On a machine without GPUs
+``accelerate launch --multi_gpu --num_processes N ... --device cpu`` runs N CPU processes over gloo
+(accelerate 1.15's ``--cpu`` alone starts one process unless given an MPI hostfile; docs/model.md).
 Mixed precision (bf16, or fp16 with loss scaling) on CUDA.
 """
 
@@ -85,6 +89,7 @@ class Trainer:
         self.diffusion, self.data, self.callbacks = diffusion, data, list(callbacks)
         self._items: dict[int, dict] = {}
         self._item_bytes = 0
+        self.read: set[int] = set()  # indices of the Dataset items this process has read
         self.step = 0
         self.until = config.steps  # the step this train() call stops at
         self.losses: list[float] = []
@@ -102,9 +107,14 @@ class Trainer:
         order = np.random.default_rng([self.config.seed, epoch]).permutation(len(self.data))
         return order[i * b : (i + 1) * b]
 
+    def share(self, step: int, process: int | None = None) -> np.ndarray:
+        """The indices of ``process``'s (default: this one's) share of the step's global batch."""
+        rank = self.acc.process_index if process is None else process
+        return self.batch_indices(step)[rank :: self.acc.num_processes]
+
     def _batch(self, step: int) -> dict:
         """This process's share of the step's batch: the items' tensors stacked, on the device."""
-        mine = self.batch_indices(step)[self.acc.process_index :: self.acc.num_processes]
+        mine = self.share(step)
         items = [self._item(int(i)) for i in mine]
         return {
             k: torch.stack([it[k] for it in items]).to(self.device, non_blocking=True)
@@ -117,6 +127,7 @@ class Trainer:
         item = self._items.get(index)
         if item is None:
             item = self.data[index]
+            self.read.add(index)
             size = sum(v.numel() * v.element_size() for v in item.values() if isinstance(v, torch.Tensor))
             if self._item_bytes + size <= ITEM_CACHE_BYTES:
                 self._items[index] = item

@@ -1,6 +1,7 @@
 """Held-out objects: `dataset split --hold-out` and one evaluation report with a section per test part."""
 
 import json
+import re
 
 import numpy as np
 import pytest
@@ -100,11 +101,30 @@ def test_evaluate_on_an_object_split_writes_one_report_with_both_parts(runs, tmp
     saved = json.loads((tmp_path / "rep" / "metrics.json").read_text())
     assert set(saved["parts"]) == {"test", "test_object"} and saved["parts"]["test_object"]["objects"] == ["heart"]
     fz = [s for s in saved["parts"]["test_object"]["force_sweep"] if s["component"] == "Fz"]
-    assert len(fz) == 1 and len(fz[0]["values"]) == 3
+    # three values within the training range, two past its maximum (no reference there)
+    assert len(fz) == 1 and len(fz[0]["values"]) == 5 and fz[0]["inside_training_range"] == [True] * 3 + [False] * 2
     # the pose frames sit at x = y = 0 where the run has frames at several depths: references are found
-    assert fz[0]["references"] >= 1 and any(
+    assert fz[0]["references_real"] + fz[0]["references_render"] >= 1 and any(
         src.startswith(("real frame", "physics render")) for src in fz[0]["sources"]
     )
+    # every part's table has the baselines that need no model, beside the physics render, each with an interval
+    for name in (
+        "baseline: background (the run's no-contact frame)",
+        "baseline: mean training frame",
+        "baseline: background + mean training contact at the pose",
+        "baseline: nearest training frame by condition",
+        "baseline: physics render",
+    ):
+        assert text.count(f"| {name}") == 2, name
+    assert text.count("**Verdict**: ") >= 4  # the metrics and the force response of each part
+    row = next(line for line in text.splitlines() if line.startswith("| baseline: mean training frame |"))
+    assert re.search(r"\| \d+\.\d\d \(\d+\.\d\d–\d+\.\d\d\) \|", row), row  # MSE (95 % interval)
+    assert len(saved["parts"]["test"]["baselines"]) == 4 and saved["parts"]["test"]["baselines"][0]["ci"]["mse"]
+    # the paper's rows in a table of their own, labelled; no path of this machine anywhere
+    paper = text.split("## The paper's numbers")[1]
+    assert "256×256 px" in paper and "| paper, RGB light | 21.0 |" in paper
+    assert "paper, RGB light" not in text.split("## The paper's numbers")[0]
+    assert str(tmp_path) not in text and str(tmp_path) not in (tmp_path / "rep" / "metrics.json").read_text()
     # one part asked for: the old single-section report
     r = CliRunner().invoke(
         evaluate_app,

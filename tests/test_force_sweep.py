@@ -6,6 +6,9 @@ import numpy as np
 import pytest
 
 from model import force_sweep as F
+from model import sweep_measures as M
+from model import sweep_references as R
+from model.sweep_report import reference_table, response_table, verdict
 
 SIZE = 64
 MM_PER_PX = 0.1
@@ -46,17 +49,17 @@ def sweep(generator, component, values, references=None, base=(0.0, 0.0, 2.0, 0.
 
 
 def test_area_centroid_and_shading_of_a_disk():
-    m = F.measure_contact(disk(10, shift_px=5), NO_CONTACT, mm_per_px=MM_PER_PX, blur_px=0)
+    m = M.measure_contact(disk(10, shift_px=5), NO_CONTACT, mm_per_px=MM_PER_PX, blur_px=0)
     assert m.area_px == pytest.approx(math.pi * 10**2, rel=0.08)
     assert m.area_mm2 == pytest.approx(m.area_px * MM_PER_PX**2)
     assert m.centroid_x_mm == pytest.approx(0.5, abs=0.06) and m.centroid_y_mm == pytest.approx(0.0, abs=0.06)
     assert m.shading == pytest.approx(60.0, abs=0.5)
-    none = F.measure_contact(NO_CONTACT, NO_CONTACT, mm_per_px=MM_PER_PX)
+    none = M.measure_contact(NO_CONTACT, NO_CONTACT, mm_per_px=MM_PER_PX)
     assert none.area_px == 0 and math.isnan(none.centroid_x_mm) and none.shading == 0
     with pytest.raises(ValueError, match="mm_per_px"):
-        F.measure_contact(NO_CONTACT, NO_CONTACT, mm_per_px=float("nan"))
+        M.measure_contact(NO_CONTACT, NO_CONTACT, mm_per_px=float("nan"))
     with pytest.raises(ValueError, match="differ in shape"):
-        F.measure_contact(NO_CONTACT[:10], NO_CONTACT, mm_per_px=MM_PER_PX)
+        M.measure_contact(NO_CONTACT[:10], NO_CONTACT, mm_per_px=MM_PER_PX)
 
 
 def test_hertz_disks_give_a_monotonic_area_with_exponent_two_thirds():
@@ -86,8 +89,8 @@ def test_a_generator_that_ignores_the_force_is_flagged():
     assert math.isnan(flat["area_mm2"]["rho"]) and not flat["monotonic"] and flat["area_sign_consistency"] == 0.0
     shrinking = F.summarise(sweep(lambda w: disk(20 - float(w[2])), "Fz", values))
     assert shrinking["area_mm2"]["rho"] == pytest.approx(-1.0) and not shrinking["monotonic"]
-    table = "\n".join(F.component_table([flat], {"Fz": (0.5, 16.0)}))
-    assert "| Fz | +0.50 … +16.00 N | 1 | — (no response) |" in table and "| 0/1 |" in table
+    table = "\n".join(response_table([flat], {"Fz": (0.5, 16.0)}))
+    assert "| Fz | +0.50 … +16.00 N | 1 | — (no response) | 0/1 (pressing harder never shrinks the contact) |" in table
 
 
 def test_the_error_against_a_reference_is_the_known_difference():
@@ -95,23 +98,23 @@ def test_the_error_against_a_reference_is_the_known_difference():
     bigger = [(disk(RADIUS_PX_PER_N3 * v ** (1 / 3) + 2), "real frame") for v in values[:3]] + [(None, "")]
     s = F.summarise(sweep(hertz, "Fz", values, references=bigger))
     model = np.array(s["model_area_mm2"][:3])
-    ref = np.array(s["reference_area_mm2"][:3])
-    assert s["references"] == 3 and math.isnan(s["reference_area_mm2"][3])
-    assert s["area_mm2"]["mae"] == pytest.approx(np.mean(np.abs(model - ref)))
-    assert s["area_mm2"]["mae"] > 0.5  # a radius 2 px larger at 0.1 mm/px: well over half a mm²
-    assert s["area_mm2"]["reference_rho"] == pytest.approx(1.0) and s["monotonic"]
+    ref = np.array(s["real_area_mm2"][:3])
+    assert s["references_real"] == 3 and s["references_render"] == 0 and math.isnan(s["real_area_mm2"][3])
+    assert s["area_mm2"]["real_mae"] == pytest.approx(np.mean(np.abs(model - ref)))
+    assert s["area_mm2"]["real_mae"] > 0.5  # a radius 2 px larger at 0.1 mm/px: well over half a mm²
+    assert s["area_mm2"]["real_rho"] == pytest.approx(1.0) and s["monotonic"]
     # k compared over the points both have: a radius 2 px larger grows relatively slower, so its k is lower
-    assert 0 < s["reference_area_exponent"] < s["area_exponent_matched"]
+    assert 0 < s["real_area_exponent"] < s["area_exponent_at_real"]
 
 
 def test_spearman_slope_and_power_law():
-    assert F.spearman([1, 2, 3, 4], [1, 3, 2, 4]) == pytest.approx(0.8)
-    assert F.spearman([1, 2, 3, 4], [10, 10, 10, 10]) != F.spearman([1, 2, 3, 4], [10, 10, 10, 10])  # nan
-    assert F.spearman([1, 2, 3, 4, 5], [1, 1, 2, 2, 3]) == pytest.approx(9 / math.sqrt(90))  # ties: mean ranks
-    assert F.slope([0, 1, 2], [1, 3, 5]) == pytest.approx(2.0)
+    assert M.spearman([1, 2, 3, 4], [1, 3, 2, 4]) == pytest.approx(0.8)
+    assert M.spearman([1, 2, 3, 4], [10, 10, 10, 10]) != M.spearman([1, 2, 3, 4], [10, 10, 10, 10])  # nan
+    assert M.spearman([1, 2, 3, 4, 5], [1, 1, 2, 2, 3]) == pytest.approx(9 / math.sqrt(90))  # ties: mean ranks
+    assert M.slope([0, 1, 2], [1, 3, 5]) == pytest.approx(2.0)
     f = np.array([1.0, 2.0, 4.0, 8.0])
-    assert F.power_exponent(f, 3 * f**0.5) == pytest.approx(0.5)
-    assert F.sign_consistency([1, 2, 2, 3], +1) == pytest.approx(2 / 3)
+    assert M.power_exponent(f, 3 * f**0.5) == pytest.approx(0.5)
+    assert M.sign_consistency([1, 2, 2, 3], +1) == pytest.approx(2 / 3)
 
 
 def test_real_frames_are_matched_at_the_pose_and_depth_follows_the_runs_force():
@@ -122,12 +125,12 @@ def test_real_frames_are_matched_at_the_pose_and_depth_follows_the_runs_force():
     wrench[:, 2] = 10 * depth**1.5
     std = np.ones(6)
     values = np.array([0.5, 2.5, 5.0, 7.2, 20.0])
-    found = F.match_real_frames(wrench, pose, 1, 2, values, std)
+    found = R.match_real_frames(wrench, pose, 1, 2, values, std)
     # nearest at x = 0 only: 0.89 (frame 0) is within half a step of 0.5, 20 N is beyond the run
     assert found[:4] == [0, 1, 2, 3] and found[4] is None
-    assert F.match_real_frames(wrench, pose, 5, 2, values, std)[:4] == [4, 5, 6, 7]
-    assert F.depth_for_force(wrench[:, 2], pose[:, 2], 10 * 0.5**1.5) == pytest.approx(-0.5, abs=0.05)
-    assert F.depth_for_force(wrench[:, 2], pose[:, 2], 50.0) is None
+    assert R.match_real_frames(wrench, pose, 5, 2, values, std)[:4] == [4, 5, 6, 7]
+    assert R.depth_for_force(wrench[:, 2], pose[:, 2], 10 * 0.5**1.5) == pytest.approx(-0.5, abs=0.05)
+    assert R.depth_for_force(wrench[:, 2], pose[:, 2], 50.0) is None
 
 
 def test_poses_are_firm_low_shear_and_spread_over_runs():
@@ -144,3 +147,127 @@ def test_poses_are_firm_low_shear_and_spread_over_runs():
     fz = np.linspace(0, 10, n)
     assert all(4 <= fz[f] <= 9.5 for _, f in chosen)
     assert abs(pose[0][chosen[0][1], 0] - pose[0][chosen[2][1], 0]) >= 0.5
+
+
+def test_monotonic_follows_the_sign_of_the_references_rho_not_its_size():
+    """Regression (issue 27): the model's ρ was multiplied by the reference's ρ, so a model ρ of +0.94
+    against a reference whose own ρ was +0.5 counted as not monotonic ('monotonic poses 1/3')."""
+    values = F.sweep_values(1.0, 8.0, 7)
+    # references that grow only weakly and noisily (ρ = +0.5): the direction is 'growing' all the same
+    radii = [5.0, 6.5, 5.5, 7.0, 6.0, 7.5, 6.8]
+    refs = [R.Reference(disk(r), R.REAL, "real frame") for r in radii]
+    s = F.summarise(sweep(hertz, "Fz", values, references=refs))
+    assert 0.3 < s["area_mm2"]["real_rho"] < 0.8 and s["area_mm2"]["rho"] >= 0.8
+    assert s["direction"] == 1.0 and s["direction_from"] == "real frames"
+    assert s["monotonic"]
+    # three such poses: all three monotonic, and the table says 3/3
+    table = "\n".join(response_table([s, s, s], {"Fz": (1.0, 8.0)}))
+    assert "| 3/3 (real frames) |" in table
+    # a model against a shrinking reference direction is not monotonic, however large its ρ
+    shrinking = [R.Reference(disk(9 - r), R.REAL, "real frame") for r in radii]
+    assert not F.summarise(sweep(hertz, "Fz", values, references=shrinking))["monotonic"]
+
+
+def test_components_without_range_are_skipped_and_said():
+    pct = {"p2": [0.0, -0.3, 0.4, 0, 0, 0.0], "p98": [0.0, 0.3, 1.8, 0, 0, 0.0]}
+    ranges, skipped = F.swept_ranges(pct, ("Fz", "Fx", "Fy", "Mz"))
+    assert ranges == {"Fz": (0.4, 1.8), "Fy": (-0.3, 0.3)}
+    assert set(skipped) == {"Fx", "Mz"}
+    assert skipped["Fx"] == "Fx: no range in the training data (2nd to 98th percentile +0.00 … +0.00 N): not swept"
+    assert "N·mm" in skipped["Mz"]
+
+
+def test_real_frames_and_renders_are_reported_apart():
+    values = F.sweep_values(1.0, 8.0, 4)
+    refs = [
+        R.Reference(disk(RADIUS_PX_PER_N3 * values[0] ** (1 / 3)), R.REAL, "real frame 3"),
+        R.Reference(disk(RADIUS_PX_PER_N3 * values[1] ** (1 / 3)), R.REAL, "real frame 9"),
+        R.Reference(disk(3 * RADIUS_PX_PER_N3 * values[2] ** (1 / 3)), R.RENDER, "physics render at z -1 mm"),
+        R.Reference(disk(3 * RADIUS_PX_PER_N3 * values[3] ** (1 / 3)), R.RENDER, "physics render at z -2 mm"),
+    ]
+    s = F.summarise(sweep(hertz, "Fz", values, references=refs))
+    assert (s["references_real"], s["references_render"]) == (2, 2)
+    assert s["area_mm2"]["real_mae"] < 0.05  # the real frames are the model's own disks
+    assert s["area_mm2"]["render_mae"] > 5  # renders three times as wide: their error is theirs alone
+    table = "\n".join(reference_table([s], {"Fz": (1.0, 8.0)}))
+    assert "| Fz | real frames | 2/4 |" in table and "| Fz | physics render | 2/4 |" in table
+
+
+def test_beyond_the_training_range_is_measured_apart_and_in_the_verdict():
+    values = np.concatenate([F.sweep_values(1.0, 8.0, 5), F.beyond_values(1.0, 8.0, 1.0)])
+    inside = [True] * 5 + [False] * 2
+
+    def striped(w):  # a model that draws stripes past 8 N
+        img = hertz(w)
+        if w[2] > 8.0:
+            img[:, ::4] = GREY + 40
+        return img
+
+    s = F.summarise(
+        F.sweep_pose(
+            lambda p, ws: [striped(w) for w in ws],
+            0,
+            "Fz",
+            values,
+            np.array([0, 0, 2.0, 0, 0, 0]),
+            no_contact=NO_CONTACT,
+            mm_per_px=MM_PER_PX,
+            references=[R.NONE] * 7,
+            inside=inside,
+            blur_px=0.0,
+        )
+    )
+    assert s["values"][-2:] == pytest.approx([11.5, 15.0]) and s["beyond_values"] == pytest.approx([11.5, 15.0])
+    assert s["area_exponent"] == pytest.approx(2 / 3, abs=0.05)  # within the training range only
+    assert s["outside_change_in_range"] < 1 < s["outside_change_beyond"]
+    line = verdict([s], None, {})
+    assert line.startswith("**Verdict**: the contact grows monotonically with Fz at 1/1 poses, k = 0.6")
+    assert "past the training maximum" in line
+
+
+def test_the_verdict_holds_the_model_to_the_real_frames_exponent():
+    values = F.sweep_values(1.0, 8.0, 5)
+    s = F.summarise(sweep(hertz, "Fz", values, blur_px=0))
+    good = M.FramesExponent(0.6, 0.5, 0.7, 0.9, 20, 1.0, 8.0)
+    assert "within ±30%" in verdict([s], good, {})
+    assert "outside ±30%" in verdict([s], M.FramesExponent(0.3, 0.2, 0.4, 0.9, 20, 1.0, 8.0), {})
+    vague = M.FramesExponent(-0.2, -0.8, 0.7, -0.1, 24, 1.2, 1.8)
+    assert "not determined" in verdict([s], vague, {})
+    assert "Fz was not swept (Fz: no range" in verdict([], None, {"Fz": "Fz: no range in the training data"})
+
+
+def test_the_real_frames_exponent_has_a_bootstrap_interval():
+    rng = np.random.default_rng(1)
+    f = np.linspace(1, 9, 30)
+    area = f ** (2 / 3) * np.exp(rng.normal(0, 0.05, 30))
+    fe = M.frames_exponent(f, area)
+    assert fe.low < 2 / 3 < fe.high and fe.high - fe.low < 0.2 and fe.frames == 30
+    flat = M.frames_exponent(np.linspace(1.2, 1.8, 24), np.exp(rng.normal(0, 0.2, 24)))
+    assert flat.low < 0 < flat.high  # no force range to speak of: the interval says so
+
+
+def test_poses_say_when_they_share_a_run():
+    assert F.pose_runs([(0, 1), (1, 5), (2, 9)], {}) == "3 poses, each from a different run"
+    text = F.pose_runs([(0, 1), (1, 5), (0, 9)], {0: "a.h5", 1: "b.h5"})
+    assert text == "3 poses from 2 run(s), so not all from different runs: poses 1, 3 from a.h5"
+
+
+def test_the_contact_threshold_follows_the_parts_peak_change():
+    frames = [disk(8, gain=90), disk(9, gain=96), NO_CONTACT]
+    threshold, peak = M.contact_threshold(frames, [NO_CONTACT] * 3, blur_px=0)
+    assert peak == pytest.approx(93) and threshold == pytest.approx(31)  # a third of the median, contacts only
+    assert M.contact_threshold([NO_CONTACT], [NO_CONTACT], 0)[0] == M.THRESHOLD
+
+
+def test_without_a_real_exponent_the_model_is_held_to_the_render_at_its_poses():
+    """GelSight presses (issue 27): one press per place, so no real frames at one pose and several forces,
+    and across the field the measured contact shrinks as the derived Fz grows: the verdict says so and
+    holds the model to the calibrated render's exponent at the same poses."""
+    values = F.sweep_values(1.0, 8.0, 5)
+    renders = [R.Reference(disk(RADIUS_PX_PER_N3 * v ** (1 / 3)), R.RENDER, "physics render") for v in values]
+    s = F.summarise(sweep(hertz, "Fz", values, references=renders, blur_px=0))
+    assert s["render_area_exponent"] == pytest.approx(2 / 3, abs=0.1)
+    falling = M.FramesExponent(-0.49, -1.05, -0.16, -0.42, 24, 1.18, 1.78, "24 real frames")
+    line = verdict([s], falling, {})
+    assert "for the physics render at the sweep's poses (1 pose(s)): within ±30%" in line
+    assert "interval [-1.05, -0.16] that lies below zero" in line

@@ -231,11 +231,12 @@ def test_evaluate_writes_the_report_with_the_physics_render_row(tmp_path):
     assert set(ev.examples) == {"object at pose", "real", "physics render", "ddim, 3 steps", "ddpm, 4 steps"}
     path = report(ev, tmp_path / "report", title="test")
     text = path.read_text()
-    assert (
-        "| this model (ddim, 3 steps) |" in text
-        and "| paper, RGB light (paper's table, real data, 256 px) | 21.0 |" in text
-    )
-    assert "| physics render: the simulator's mechanics + lighting at the measured pose |" in text
+    mine, paper = text.split("## The paper's numbers")
+    assert "| this model (ddim, 3 steps) | " in mine and "| paper, RGB light | 21.0 |" in paper
+    assert "paper, RGB light" not in mine  # the paper's rows in a table of their own (256 px, its data)
+    assert "| baseline: physics render (the simulator's mechanics + calibrated lighting at the measured pose) |" in mine
+    assert "| baseline: mean training frame |" in mine and "| baseline: nearest training frame by condition |" in mine
+    assert str(tmp_path) not in text
     for png in ("error_vs_time.png", "samples.png"):
         assert (tmp_path / "report" / png).stat().st_size > 1000
     assert not (tmp_path / "report" / "marker_flow.png").exists()

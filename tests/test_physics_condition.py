@@ -189,14 +189,16 @@ def test_physics_is_refused_for_an_object_the_simulator_does_not_know(tmp_path):
     import h5py
     from typer.testing import CliRunner
 
+    from acquisition import attr_checksum
     from cli.model_app import app
     from dataset.split import make_split
     from model.physics_condition import PhysicsUnavailable, split_spec
 
     split = make_split_dir(tmp_path)
     run = json.loads((split / "split.json").read_text())["runs"][0]["path"]
-    with h5py.File(run, "r+") as f:
+    with h5py.File(run, "r+") as f:  # a run of an object the simulator lacks (written so: checksum and all)
         f.attrs["object_name"] = "my_mug"
+        attr_checksum.seal(f)
     make_split([run], "8:2", split)  # the split made again: the file changed since the first
     with pytest.raises(PhysicsUnavailable, match="'my_mug' is not one the simulator knows"):
         split_spec(split)

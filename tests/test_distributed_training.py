@@ -1,0 +1,106 @@
+"""Training on two processes through accelerate (DDP over gloo, CPU): each process reads its own
+shard, the loss matches one process at the same global batch, and a checkpoint written by two
+processes resumes on one and back (issue 27). Small: 16 px, 32 training frames, a few steps."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from tests.test_model_core import make_split_dir
+
+ACCELERATE = Path(sys.executable).with_name("accelerate")
+ARGS = [
+    "--preset",
+    "tiny",
+    "--image-size",
+    "16",
+    "--conditioning",
+    "plane",
+    "--batch-size",
+    "8",
+    "--sample-every",
+    "0",
+    "--threads",
+    "1",
+    "--device",
+    "cpu",
+]
+
+
+def _run(command: list[str]) -> str:
+    env = {**os.environ, "OMP_NUM_THREADS": "1", "PYTHONPATH": str(Path(__file__).resolve().parents[1])}
+    done = subprocess.run(command, capture_output=True, text=True, env=env, timeout=240)
+    errors = [line for line in done.stderr.splitlines() if "rror" in line or "terminate" in line or "what()" in line]
+    assert done.returncode == 0, done.stdout[-2000:] + "\n".join(errors[:20])
+    return done.stdout
+
+
+def two_processes(split: Path, out: Path, steps: int, *extra: str) -> str:
+    # accelerate 1.15: --multi_gpu starts N processes through torch.distributed.run; with --device cpu
+    # they train on the CPU over gloo (--cpu alone starts one process without an MPI hostfile)
+    launch = [str(ACCELERATE), "launch", "--multi_gpu", "--num_processes", "2", "--num_machines", "1"]
+    launch += ["--mixed_precision", "no", "--dynamo_backend", "no", "--main_process_port", "0"]
+    return _run(
+        launch
+        + ["-m", "cli.model_app", "--data", str(split), "--out", str(out), "--steps", str(steps)]
+        + ARGS
+        + list(extra)
+    )
+
+
+def one_process(split: Path, out: Path, steps: int, *extra: str) -> str:
+    command = [sys.executable, "-m", "cli.model_app", "--data", str(split), "--out", str(out), "--steps", str(steps)]
+    return _run(command + ARGS + list(extra))
+
+
+def state(run: Path) -> dict:
+    return json.loads((run / "checkpoint" / "state.json").read_text())
+
+
+@pytest.mark.skipif(shutil.which(str(ACCELERATE)) is None, reason="accelerate's launcher is not installed")
+def test_two_processes_train_their_shards_match_one_and_resume_either_way(tmp_path):
+    split = make_split_dir(tmp_path, n=40)  # 32 training frames: 4 steps of 8 are one epoch
+    two = two_processes(split, tmp_path / "two", 4)
+    assert "x 2 processes" in two
+    # each process read its own half of the epoch's items, and nothing else
+    for rank in (0, 1):
+        assert f"process {rank} of 2: read 16 of 32 training items" in two
+    one = one_process(split, tmp_path / "one", 4)
+    assert " x 2 processes" not in one
+    a, b = np.array(state(tmp_path / "two")["losses"]), np.array(state(tmp_path / "one")["losses"])
+    assert len(a) == len(b) == 4
+    # the same global batches, the same initial weights; only the second process's noise differs
+    assert abs(a.mean() - b.mean()) < 0.15 * b.mean(), (a, b)
+
+    # written by two processes, resumed on one...
+    resumed = one_process(split, tmp_path / "two", 6, "--resume")
+    assert "resumed at step 4" in resumed and state(tmp_path / "two")["step"] == 6
+    # ...and back on two
+    back = two_processes(split, tmp_path / "two", 8, "--resume")
+    assert "resumed at step 6" in back and "x 2 processes" in back
+    final = state(tmp_path / "two")
+    assert final["step"] == 8 and len(final["losses"]) == 8 and np.isfinite(final["losses"]).all()
+
+
+def test_the_processes_shares_of_a_step_are_disjoint_and_make_the_global_batch():
+    """The sharding itself, without launching: each share is a disjoint slice of the single-process batch."""
+    from types import SimpleNamespace
+
+    from model.trainer import TrainConfig, Trainer
+
+    t = Trainer.__new__(Trainer)
+    t.config, t.data = TrainConfig(batch_size=8, seed=3), list(range(32))
+    t.acc = SimpleNamespace(process_index=0, num_processes=2)
+    for step in range(8):
+        shares = [set(t.share(step, rank).tolist()) for rank in (0, 1)]
+        assert not shares[0] & shares[1] and shares[0] | shares[1] == set(t.batch_indices(step).tolist())
+    epoch = [set(np.concatenate([t.share(s, rank) for s in range(4)]).tolist()) for rank in (0, 1)]
+    assert len(epoch[0]) == len(epoch[1]) == 16 and not epoch[0] & epoch[1]
