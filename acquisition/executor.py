@@ -28,7 +28,7 @@ from rig.envelope import DepthGuard
 from rig.errors import DeviceError, ForceLimitExceeded, RigError, SafetyError
 from rig.interruption import describe
 from rig.safety import check_speed, check_target
-from rig.types import MotionSession
+from rig.types import WRENCH_COMPONENTS, WRENCH_UNITS, MotionSession
 
 log = logging.getLogger("acquisition")
 
@@ -60,6 +60,31 @@ class ProtocolRefused(SafetyError):
     """The protocol would leave the rig's soft limits or exceed a speed; nothing moved."""
 
 
+def protocol_limits(config, protocol) -> np.ndarray | None:
+    """The force/torque limits a protocol runs under: its [limits] (|Fx|, |Fy|, |Fz| N, |Mx|, |My|,
+    |Mz| N·mm), which must fit inside the rig config's [safety]; None when it declares none (the
+    rig's own). Raises ProtocolRefused naming the component, both values and the way out."""
+    if getattr(protocol, "max_force_N", None) is None:
+        return None
+    wanted = np.array([*protocol.max_force_N, *protocol.max_torque_Nmm], dtype=float)
+    if config.safety is None:
+        raise ProtocolRefused(f"{protocol.path} declares [limits], but {config.path} has no [safety] to check them")
+    have = np.array([*config.safety.max_force_N, *config.safety.max_torque_Nmm], dtype=float)
+    over = np.nonzero(wanted > have * (1 + 1e-9))[0]
+    if over.size:
+        i = int(over[0])
+        name, unit = WRENCH_COMPONENTS[i], WRENCH_UNITS[i]
+        key = "max_force_N" if i < 3 else "max_torque_Nmm"
+        raise ProtocolRefused(
+            f"{protocol.name} reaches |{name}| up to {wanted[i]:g} {unit} ({protocol.path} [limits]: what pressing "
+            f'this object this deep loads the gel with; docs/protocols.md, "Texture boards"), more than '
+            f"{config.path} [safety] {key} allows ({have[i]:g} {unit}), so the run would stop partway: raise it where "
+            "your sensor and gauge take that load, or press shallower (--set motion.max_depth_mm=...) with [limits] "
+            "to match; nothing moved"
+        )
+    return wanted
+
+
 def preflight(config, plan: Plan, origin: dict[str, float], *, depth=None, envelope=None, poll_s=None) -> None:
     """Check every waypoint and speed of the plan against the rig config; moves nothing.
 
@@ -68,6 +93,7 @@ def preflight(config, plan: Plan, origin: dict[str, float], *, depth=None, envel
     the guard can stop in time (a captured step is never slowed: its frames are planned at
     its speed). Raises ProtocolRefused naming the step, the axis, the value and the limit.
     """
+    protocol_limits(config, plan.protocol)
     for step in plan.steps:
         for pose in (step.start, step.end):
             for axis, value in zip(AXES, pose):
@@ -238,6 +264,14 @@ class Acquisition:
 
     # -- the run ----------------------------------------------------------------------
     def run(self, path: str | Path, *, resume: bool = False, header: dict | None = None) -> RunResult:
+        """Run the plan into ``path``, guarded by the protocol's [limits] where it declares them."""
+        limits = protocol_limits(self.rig.config, self.protocol)
+        if limits is None:
+            return self._run(path, resume=resume, header=header)
+        with self.rig.narrowed_limits(limits):
+            return self._run(path, resume=resume, header=header)
+
+    def _run(self, path: str | Path, *, resume: bool, header: dict | None) -> RunResult:
         path = Path(path)
         plan, proto = self.plan, self.protocol
         hint = (self.origin["z"], "the protocol's origin (--origin)")

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import re
 
 from acquisition.schema import FAST_CODEC, RIG_CONFIG_MARK
 from rig.clock import ManualClock
@@ -26,7 +27,8 @@ def simulated_rig_for(
     protocol, *, safety: SafetyConfig | None = None, transport: str = "pty", profile: SensorProfile | None = None
 ):
     """Yield (rig, simulated rig, run-file header) for ``protocol`` on the simulated rig with the
-    sensor ``profile`` (default: the shipped GelSight Mini), whose name and hash the run file keeps."""
+    sensor ``profile`` (default: the shipped GelSight Mini), whose name and hash the run file keeps.
+    The simulated rig's force limits are ``safety``'s, else the protocol's [limits], else its own."""
     clock = ManualClock()
     profile = profile or default_profile()
     with SimulatedRig(
@@ -39,13 +41,20 @@ def simulated_rig_for(
     ) as simulated:
         simulated.triggered_camera = True
         cfg = simulated.config()
+        config_text = simulated.config_toml()
         if safety is not None:
             cfg = dataclasses.replace(cfg, safety=safety)
+        elif protocol.max_force_N is not None and cfg.safety is not None:
+            # the simulated rig stands for one set up for this protocol: its [limits] (a board's
+            # loads, docs/protocols.md) are the simulated rig's [safety]
+            limits = {"max_force_N": protocol.max_force_N, "max_torque_Nmm": protocol.max_torque_Nmm}
+            cfg = dataclasses.replace(cfg, safety=dataclasses.replace(cfg.safety, **limits))
+            config_text = _with_limits(config_text, limits)  # the run file records the limits it ran under
         contact = simulated.world.contact
         assert isinstance(contact, ElastomerContact) and cfg.camera is not None  # the simulated rig's gel and camera
         geometry = contact.solver.geometry
         header = {
-            "rig_config": RIG_CONFIG_MARK + "\n" + simulated.config_toml(),
+            "rig_config": RIG_CONFIG_MARK + "\n" + config_text,
             "mm_per_px": geometry.width_mm / cfg.camera.width,
             "sensor_profile": profile.record(),
             # the simulator's frames are mostly sensor noise, written ~150 a second: the fast codec
@@ -54,6 +63,16 @@ def simulated_rig_for(
         }
         with Rig.open(cfg, clock, camera=True, sim=simulated) as rig:
             yield rig, simulated, header
+
+
+def _with_limits(text: str, limits: dict[str, tuple[float, float, float]]) -> str:
+    """The simulated rig's config text with its [safety] force and torque limits replaced."""
+    for key, values in limits.items():
+        line = f"{key} = [{', '.join(repr(float(v)) for v in values)}]  # the protocol's [limits]"
+        text, n = re.subn(rf"(?m)^{key} = \[[^\]]*\]", line, text)
+        if n != 1:
+            raise AssertionError(f"the simulated rig's config has {n} lines for {key}, expected 1")
+    return text
 
 
 def monitor_interval_s(protocol) -> float:

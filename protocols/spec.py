@@ -10,6 +10,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from common.errors import ConfigError
+from common.gauge_range import MAX_FORCE_LIMIT_N, MAX_TORQUE_LIMIT_NMM
 from common.sensors import SENSOR_KINDS
 from common.table import Table, toml_table
 
@@ -34,6 +35,10 @@ class Protocol:
     approach_mm: float  # start this far above the contact point
     approach_speed_mm_s: float  # to and from the start, not captured
     capture_hz: float
+    # [limits]: the force/torque limits this protocol runs under (|Fx|, |Fy|, |Fz| N; |Mx|, |My|,
+    # |Mz| N·mm), derived from the object's contact area and the gel's stiffness; None: the rig's own
+    max_force_N: tuple[float, float, float] | None = None
+    max_torque_Nmm: tuple[float, float, float] | None = None
 
     def same_motion(self, other: "Protocol") -> bool:
         """Every setting equal (file path, text and comments aside): what ``--resume`` needs."""
@@ -51,6 +56,7 @@ def parse_protocol(text: str, path: str = "<string>") -> Protocol:
     meta = Table(path, "protocol", top.get("protocol", dict))
     motion = Table(path, "motion", top.get("motion", dict))
     capture = Table(path, "capture", top.get("capture", dict, {}))
+    limits = Table(path, "limits", top.get("limits", dict, {}))
     from objects.indenters import INDENTERS
 
     p = Protocol(
@@ -72,8 +78,9 @@ def parse_protocol(text: str, path: str = "<string>") -> Protocol:
         approach_mm=motion.get("approach_mm", float, 1.0, low=0.05, high=50.0),
         approach_speed_mm_s=motion.get("approach_speed_mm_s", float, 0.5, low=1e-3, high=10.0),
         capture_hz=capture.get("rate_hz", float, 1.0, low=0.01, high=100.0),
+        **_limits(limits),
     )
-    for table in (meta, motion, capture):
+    for table in (meta, motion, capture, limits):
         table.done()
     # 0 turns a move off; a sub-micrometre (or micro-degree) one is below what the stages
     # repeat, and at 1e-311 its length underflows to zero, leaving a move with no duration
@@ -89,6 +96,16 @@ def parse_protocol(text: str, path: str = "<string>") -> Protocol:
             f"must be a whole number of depth steps ({p.depth_step_mm} mm), got {p.max_depth_mm}",
         )
     return p
+
+
+def _limits(limits: Table) -> dict:
+    """``[limits]``: both vectors or neither, each component > 0 and within a gauge's full scale
+    (common/gauge_range.py): a limit the gauge cannot read never trips."""
+    if not limits.data:
+        return {}
+    force = limits.vector("max_force_N", 3, positive=True, high=MAX_FORCE_LIMIT_N)
+    torque = limits.vector("max_torque_Nmm", 3, positive=True, high=MAX_TORQUE_LIMIT_NMM)
+    return {"max_force_N": force, "max_torque_Nmm": torque}
 
 
 def _object(meta: Table, path: str, library: tuple[str, ...]) -> str:

@@ -7,8 +7,11 @@ and stops everything on any way out.
 
 from __future__ import annotations
 
+import contextlib
 import logging
 from typing import TYPE_CHECKING
+
+import numpy as np
 
 from rig.clock import Clock, SystemClock
 from rig.config import RigConfig
@@ -136,6 +139,29 @@ class Rig:
             assert self.guard is not None  # require_armed refuses a rig without one
             self._envelope = Envelope(self.config.safety, self.config.axes, measure_timing(self), self.guard.limits)
         return self._envelope
+
+    @contextlib.contextmanager
+    def narrowed_limits(self, limits: np.ndarray):
+        """Guard with ``limits`` (each at most the config's: a protocol's [limits]) while the
+        block runs, the speed envelope recomputed for them; the config's limits after it,
+        however it ends."""
+        assert self.guard is not None
+        wanted = np.asarray(limits, dtype=float)
+        if wanted.shape != self.guard.limits.shape or not np.all(np.isfinite(wanted)) or np.any(wanted <= 0):
+            raise SafetyError(f"force/torque limits {wanted.tolist()}: expected 6 finite numbers > 0")
+        if np.any(wanted > self.guard.limits):
+            raise SafetyError(
+                f"force/torque limits {wanted.tolist()} exceed {self.config.path}'s [safety] "
+                f"{self.guard.limits.tolist()}: a run may only narrow them"
+            )
+        saved_guard, saved_envelope = self.guard, self._envelope
+        self.guard = ForceGuard.from_limits(wanted)
+        if saved_envelope is not None:
+            self._envelope = Envelope(self.config.safety, self.config.axes, saved_envelope.timing, wanted)
+        try:
+            yield
+        finally:
+            self.guard, self._envelope = saved_guard, saved_envelope
 
     def depth_guard(self, surface_hint: tuple[float, str] | None = None) -> DepthGuard | None:
         """The depth guard from the remembered gel surface (else ``surface_hint``: (z, how)),

@@ -1,12 +1,14 @@
-"""Every library protocol runs to the end on the built-in simulated rig with its default limits.
+"""Every library protocol runs to the end on the built-in simulated rig inside its limits.
 
-The texture boards press the whole gel, so at the paper's 0.4 mm steps their shear passes the
-simulated rig's ±10 N Fx/Fy limit at the first level and the run aborts (as it should): their
-protocol files press shallower. This holds every shipped protocol to that: run quickly (same
-path, faster stages, the contact being quasi-static) and expect "complete" with the peak
-wrench inside the limits.
+The texture boards press the whole gel, the paper's 0.4 mm steps to 1.6 mm: their loads (85 N,
+shear 17 N) are far beyond a sphere's, so their protocol files declare [limits] scaled from the
+contact area and the gel's stiffness (docs/protocols.md, "Texture boards"), which the simulated
+rig adopts. This holds every shipped protocol to its paper-like sequence: run quickly (same
+path, faster stages, the contact being quasi-static) and expect "complete" with the peak wrench
+inside the limits it ran under — and a rig whose own [safety] allows less refuses a board.
 """
 
+import dataclasses
 import re
 
 import h5py
@@ -39,6 +41,8 @@ def test_library_protocol_completes_within_the_simulated_rigs_limits(name, tmp_p
     out = tmp_path / f"{name}.h5"
     with simulated_rig_for(protocol) as (rig, _sim, header):
         limits_N = np.asarray(rig.config.safety.max_force_N, dtype=float)
+        if protocol.max_force_N is not None:  # a board: run at the paper's depth under its own [limits]
+            assert protocol.levels[-1] == pytest.approx(1.6) and limits_N.tolist() == list(protocol.max_force_N)
         result = Acquisition(rig, Plan.of(protocol), monitor_interval_s=monitor_interval_s(protocol)).run(
             out, header=header
         )
@@ -46,3 +50,21 @@ def test_library_protocol_completes_within_the_simulated_rigs_limits(name, tmp_p
     with h5py.File(out, "r") as f:
         peak_N = np.abs(f[S.WRENCH][()][:, :3]).max(axis=0)
     assert (peak_N < 0.95 * limits_N).all(), f"{name}: peak force {peak_N} N against limits {limits_N} N"
+
+
+def test_a_rig_whose_safety_allows_less_than_a_boards_limits_refuses_it_before_moving(tmp_path):
+    """The simulated rig's own limits (Fz 40 N) are below woven's 111 N: the run is refused in
+    one line naming the component, both values and the way out, and no file is written."""
+    from acquisition.executor import ProtocolRefused
+
+    protocol = _fast("woven", tmp_path)
+    with simulated_rig_for(protocol) as (rig, _sim, _header):
+        own = rig.config.safety
+    tight = dataclasses.replace(own, max_force_N=(10.0, 10.0, 40.0), max_torque_Nmm=(300.0, 300.0, 200.0))
+    out = tmp_path / "woven.h5"
+    with simulated_rig_for(protocol, safety=tight) as (rig, sim, header):
+        z0 = rig.axes["z"].position()
+        with pytest.raises(ProtocolRefused, match=r"woven reaches \|Fx\| up to 23 N .* allows \(10 N\).*nothing moved"):
+            Acquisition(rig, Plan.of(protocol), monitor_interval_s=monitor_interval_s(protocol)).run(out, header=header)
+        assert rig.axes["z"].position() == z0
+    assert not out.exists()
