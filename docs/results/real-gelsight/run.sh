@@ -32,7 +32,7 @@ mkdir -p "$OUT"
 "$BIN/dataset" split 8:2 "$OUT/gelsight.h5" --out "$OUT/split"
 # 4. five settings x SEEDS, tiny preset at 32 px, STEPS steps of 16, one torch thread;
 #    each evaluated on the test part with DDIM 10, the force sweep and every baseline
-"$BIN/python" -m cli model compare --data "$OUT/split" --out "$OUT/compare" \
+"$BIN/compare" --data "$OUT/split" --out "$OUT/compare" \
     --candidate plane --candidate physics --candidate physics,physics_depth=force \
     --candidate physics,physics_depth=force,target=physics_residual \
     --candidate physics+embedding,physics_depth=force,target=physics_residual \
