@@ -198,10 +198,11 @@ def run_protocol(
     origin_line = f"origin: x,y,z,theta = {','.join(f'{v:g}' for v in origin)} ({said})"
     if dry_run:
         if sim:
+            from cli.simulated import with_protocol_limits
             from rig.sim.rig_sim import SimulatedRig
 
             with SimulatedRig(profile=sensor_profile) as simulated:
-                rig_config = simulated.config()
+                rig_config = with_protocol_limits(simulated.config(), protocol)
         else:
             from cli.session import resolve_config_path
             from rig.config import load_config

@@ -44,12 +44,9 @@ def simulated_rig_for(
         config_text = simulated.config_toml()
         if safety is not None:
             cfg = dataclasses.replace(cfg, safety=safety)
-        elif protocol.max_force_N is not None and cfg.safety is not None:
-            # the simulated rig stands for one set up for this protocol: its [limits] (a board's
-            # loads, docs/protocols.md) are the simulated rig's [safety]
-            limits = {"max_force_N": protocol.max_force_N, "max_torque_Nmm": protocol.max_torque_Nmm}
-            cfg = dataclasses.replace(cfg, safety=dataclasses.replace(cfg.safety, **limits))
-            config_text = _with_limits(config_text, limits)  # the run file records the limits it ran under
+        elif protocol.max_force_N is not None:
+            cfg = with_protocol_limits(cfg, protocol)
+            config_text = _with_limits(config_text, _limits(protocol))  # the run file records the limits it ran under
         contact = simulated.world.contact
         assert isinstance(contact, ElastomerContact) and cfg.camera is not None  # the simulated rig's gel and camera
         geometry = contact.solver.geometry
@@ -63,6 +60,19 @@ def simulated_rig_for(
         }
         with Rig.open(cfg, clock, camera=True, sim=simulated) as rig:
             yield rig, simulated, header
+
+
+def _limits(protocol) -> dict[str, tuple[float, float, float]]:
+    return {"max_force_N": protocol.max_force_N, "max_torque_Nmm": protocol.max_torque_Nmm}
+
+
+def with_protocol_limits(cfg, protocol):
+    """The simulated rig's config for ``protocol``: the simulated rig stands for one set up for it,
+    so the protocol's [limits] (a board's loads, docs/protocols.md) are its [safety]'s; unchanged
+    for a protocol that declares none."""
+    if protocol.max_force_N is None or cfg.safety is None:
+        return cfg
+    return dataclasses.replace(cfg, safety=dataclasses.replace(cfg.safety, **_limits(protocol)))
 
 
 def _with_limits(text: str, limits: dict[str, tuple[float, float, float]]) -> str:

@@ -68,3 +68,25 @@ def test_a_rig_whose_safety_allows_less_than_a_boards_limits_refuses_it_before_m
             Acquisition(rig, Plan.of(protocol), monitor_interval_s=monitor_interval_s(protocol)).run(out, header=header)
         assert rig.axes["z"].position() == z0
     assert not out.exists()
+
+
+def test_dry_runs_of_a_board_pass_on_the_simulated_rig_and_are_refused_on_a_rig_set_up_for_spheres():
+    """`--sim --dry-run` checks a board against the simulated rig as its run would be (its [limits]
+    adopted); against docs/rig.example.toml (Fx limit 5 N) the dry run refuses in one line."""
+    from pathlib import Path
+
+    from typer.testing import CliRunner
+
+    from cli.rig_app import app
+
+    sim = CliRunner().invoke(app, ["run-protocol", "ridged", "--sim", "--dry-run"])
+    assert sim.exit_code == 0, sim.output
+    assert "dry run: ridged fits" in sim.output
+    example = Path(__file__).resolve().parents[1] / "docs" / "rig.example.toml"
+    shown = CliRunner().invoke(app, ["protocols", "show", "ridged"])
+    assert "limits: |Fx| ≤ 23, |Fy| ≤ 23, |Fz| ≤ 113 N" in shown.output, shown.output
+    refused = CliRunner().invoke(app, ["run-protocol", "ridged", "--config", str(example), "--dry-run"])
+    assert refused.exit_code == 1, refused.output
+    errors = [line for line in refused.output.splitlines() if line.startswith("error:")]
+    assert len(errors) == 1 and "ridged reaches |Fx| up to 23 N" in errors[0] and "allows (5 N)" in errors[0], errors
+    assert "Traceback" not in refused.output
