@@ -35,28 +35,17 @@ from objects.pose import Pose
 from sensor_sim.contact_find import CalibrationError, Contact, find_contact
 from sensor_sim.elastomer import Elastomer
 from sensor_sim.light import LightModel, normal_lookup
-from sensor_sim.light_fit import (
-    POSITION_RIDGES,
-    SMOOTHING,
-    SMOOTHINGS,
-    OrderChoice,
-    PressSamples,
-    choose_order,
-    fit_light_terms,
-    held_out_mae,
-)
+from sensor_sim.light_fit import OrderChoice, PressSamples, choose_order, fit_light_terms, held_out_mae
 from sensor_sim.noise import SensorNoise
 
 __all__ = ["CalibrationError", "CalibrationResult", "Contact", "Press", "find_contact", "fit_optics"]
 
-TABLE_BINS = 61  # normal grid: steps of 1/30 in nx, ny (fine near the flat normal, where most of a press lies)
-BLUR_BINS = 21  # the coarser table the blur is chosen with (its golden-section search is most of the fit otherwise)
+TABLE_BINS = 21  # normal grid: 0.1 steps in nx, ny
 FIT_RADII = 3.0  # pixels within this many contact radii of a press enter the fit
 NEAR_RADII = 1.5  # "near the contact": where the blur is chosen (and renders are scored)
 SAMPLE_STEP = 2  # every second pixel (rows and columns) enters the fit
 BLUR_MAX_MM = 0.5  # the optical blur's range is [0, BLUR_MAX_MM]
-MIN_POSITION_PRESSES, MIN_SPAN = 3, 0.4  # presses needed, and the share of the field they span, for position terms
-MIN_CHOICE_PRESSES = 4  # fewer: too few to judge the position terms by leaving a press out (two left)
+MIN_POSITION_PRESSES, MIN_SPAN = 4, 0.4  # presses needed, and the share of the field they span, for position terms
 START_BLUR_MM = 0.1  # the first light's, which the contacts are first refined under
 BLUR_STEPS = 6  # golden-section steps on the blur (to ~0.01 mm over the whole range)
 REFINE_ITERATIONS = 8
@@ -151,7 +140,6 @@ class _Fitter:
         self.render = {r: PressRender(profile, sphere(2 * r)) for r in sorted({p.ball_radius_mm for p in presses})}
         self.shade = self.bg / np.asarray(self.reference, np.float32) if shading == "multiplicative" else None
         self.notes: list[str] = []
-        self.smoothing = SMOOTHING  # the tables' smoothness prior (``choose_smoothing``)
 
     # -- contacts -------------------------------------------------------------------------------
     def pose(self, p: Press, c: Contact) -> Pose:
@@ -198,7 +186,7 @@ class _Fitter:
         x, y = int(round(c.centre_x_px)), int(round(c.centre_y_px))
         return slice(max(y - half, 0), min(y + half, h)), slice(max(x - half, 0), min(x + half, w))
 
-    def samples(self, p: Press, c: Contact, sink: np.ndarray, blur_mm: float, bins: int = 0) -> PressSamples:
+    def samples(self, p: Press, c: Contact, sink: np.ndarray, blur_mm: float) -> PressSamples:
         win = self.window(c, FIT_RADII, int(4 * blur_mm / self.mm) + 4)
         probe = LightModel(np.zeros((3, 3, 3), np.float32), blur_mm)
         s = sink[win]
@@ -208,7 +196,7 @@ class _Fitter:
         sub = np.zeros_like(inside)
         sub[::SAMPLE_STEP, ::SAMPLE_STEP] = True
         inside &= sub
-        idx, wt = normal_lookup(gx[inside], gy[inside], bins or TABLE_BINS)
+        idx, wt = normal_lookup(gx[inside], gy[inside], TABLE_BINS)
         h, w = self.bg.shape[:2]
         x = (cols[inside] - (w - 1) / 2) * self.mm / self.position_scale_mm
         y = (rows[inside] - (h - 1) / 2) * self.mm / self.position_scale_mm
@@ -220,7 +208,7 @@ class _Fitter:
 
     def light(self, contacts: list[Contact], sinks: list[np.ndarray], blur_mm: float, order: OrderChoice) -> LightModel:
         samples = [self.samples(p, c, s, blur_mm) for p, c, s in zip(self.presses, contacts, sinks)]
-        terms = fit_light_terms(samples, TABLE_BINS, order.order, order.position_ridge, self.smoothing)
+        terms = fit_light_terms(samples, TABLE_BINS, order.order, order.position_ridge)
         return LightModel(
             terms.table.astype(np.float32),
             float(blur_mm),
@@ -237,8 +225,8 @@ class _Fitter:
         one press: in-sample), by golden-section search over [0, BLUR_MAX_MM]."""
 
         def rms(blur_mm: float) -> float:
-            samples = [self.samples(p, c, s, blur_mm, BLUR_BINS) for p, c, s in zip(self.presses, contacts, sinks)]
-            return held_out_mae(samples, BLUR_BINS)
+            samples = [self.samples(p, c, s, blur_mm) for p, c, s in zip(self.presses, contacts, sinks)]
+            return held_out_mae(samples, TABLE_BINS)
 
         ratio = (math.sqrt(5) - 1) / 2
         lo, hi = 0.0, BLUR_MAX_MM
@@ -270,46 +258,22 @@ class _Fitter:
             )
         return best
 
-    def choose_smoothing(self, contacts: list[Contact], sinks: list[np.ndarray], blur_mm: float) -> None:
-        """The tables' smoothness prior of SMOOTHINGS whose leave-one-press-out error near the
-        contacts is the smallest (two presses or more; one: the default). A strong prior suits
-        presses that show few normals; a weak one lets the table follow a sharp rim."""
-        if len(contacts) < 2:
-            return
-        samples = [self.samples(p, c, s, blur_mm) for p, c, s in zip(self.presses, contacts, sinks)]
-        errors = {lam: held_out_mae(samples, TABLE_BINS, lam) for lam in SMOOTHINGS}
-        self.smoothing = min(errors, key=lambda lam: errors[lam])
-
     def spread(self, contacts: list[Contact]) -> bool:
         """Whether the presses span enough of the field for position terms (MIN_POSITION_PRESSES or
-        more, their centres over at least MIN_SPAN of the frame's width or of its height); if not,
-        a note says so and the light is the same everywhere but for the background's shading.
-        Beyond the span the presses covered, the terms are held at its edge (``position_range``)."""
+        more, their centres over at least MIN_SPAN of the frame's width and of its height); if not,
+        a note says so and the light is the same everywhere but for the background's shading."""
         h, w = self.bg.shape[:2]
         xs = [c.centre_x_px for c in contacts]
         ys = [c.centre_y_px for c in contacts]
         span_x, span_y = (max(xs) - min(xs)) / w, (max(ys) - min(ys)) / h
-        if len(contacts) >= MIN_POSITION_PRESSES and max(span_x, span_y) >= MIN_SPAN:
+        if len(contacts) >= MIN_POSITION_PRESSES and span_x >= MIN_SPAN and span_y >= MIN_SPAN:
             return True
         self.notes.append(
             f"the presses span {span_x:.0%} of the frame's width and {span_y:.0%} of its height "
             f"({len(contacts)} presses): the light's change across the field needs {MIN_POSITION_PRESSES} or more "
-            f"spanning {MIN_SPAN:.0%} of either, so it is taken as the same everywhere (shaded by the background)"
+            f"spanning {MIN_SPAN:.0%} of both, so it is taken as the same everywhere (shaded by the background)"
         )
         return False
-
-    def order(self, samples: list[PressSamples]) -> OrderChoice:
-        """The position terms' order and ridge: by leaving each press out (``choose_order``) from
-        MIN_CHOICE_PRESSES presses; with fewer (two left when one is out: too few to judge a change
-        across the field), the terms with the stronger of the ridges, and a note says so."""
-        if len(samples) >= MIN_CHOICE_PRESSES:
-            return choose_order(samples, TABLE_BINS, self.smoothing)
-        ridge = max(POSITION_RIDGES)
-        self.notes.append(
-            f"{len(samples)} presses: too few to check the light's change across the field by leaving one out; "
-            f"fitted with the stronger ridge ({ridge:g}) and held at the presses' span beyond it"
-        )
-        return OrderChoice(1, ridge, {})
 
     def position_range(self, contacts: list[Contact]) -> tuple[float, float, float, float]:
         """(x̃ low, x̃ high, ỹ low, ỹ high) the presses covered (centres ± contact radii)."""
@@ -419,10 +383,9 @@ def fit_optics(
         contacts = [c if p.given else fitter.refine(light, p, c) for p, c in zip(presses, contacts)]
         sinks = fitter.sinks(contacts)
     blur = fitter.blur(contacts, sinks)
-    fitter.choose_smoothing(contacts, sinks, blur)
     if fitter.spread(contacts):
         samples = [fitter.samples(p, c, s, blur) for p, c, s in zip(presses, contacts, sinks)]
-        order = fitter.order(samples)
+        order = choose_order(samples, TABLE_BINS)
     else:
         order = order0
     light = fitter.light(contacts, sinks, blur, order)

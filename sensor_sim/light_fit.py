@@ -22,8 +22,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
-SMOOTHING = 1.0  # λ of the tables' Laplacian penalty per 1000 fitted pixels (the default)
-SMOOTHINGS = (1.0, 9.0)  # the candidates the calibration chooses from by leaving a press out
+SMOOTHING = 1.0  # λ of the tables' Laplacian penalty per 1000 fitted pixels
 POSITION_RIDGES = (1e-3, 1e-2)  # per fitted pixel, on the position gains and turns: chosen by leave-one-out
 SINK_RIDGE = 1e-3  # per fitted pixel, on the sink terms (per mm of sink, grey levels)
 
@@ -76,9 +75,8 @@ def _smoothness(bins: int) -> sp.csr_matrix:
 class _Design:
     """Columns of the table-and-sink model: T (bins² less the flat entry), then the sink's k."""
 
-    def __init__(self, bins: int, smoothing: float = SMOOTHING):
+    def __init__(self, bins: int):
         self.bins = bins
-        self.smoothing = smoothing
         cells = bins * bins
         self.keep = np.ones(cells, bool)
         self.keep[(bins // 2) * bins + bins // 2] = False
@@ -102,7 +100,7 @@ class _Design:
         return A[:, : self.table_cols]
 
     def regulariser(self, n: int) -> sp.csc_matrix:
-        smooth = (self.smoothing * n / 1000.0) * _smoothness(self.bins)
+        smooth = (SMOOTHING * n / 1000.0) * _smoothness(self.bins)
         return sp.block_diag([smooth, sp.identity(1) * (SINK_RIDGE * n)]).tocsc()
 
     def full(self, t: np.ndarray) -> np.ndarray:
@@ -128,19 +126,13 @@ def _normal(design: _Design, s: PressSamples) -> _Normal:
     return _Normal((A.T @ A).tocsr(), np.asarray(A.T @ y), (y * y).sum(axis=0), s.n)
 
 
-def _factor(M: sp.spmatrix):
-    """LU of a symmetric positive definite normal matrix (Gram plus regulariser): a symmetric
-    ordering and diagonal pivots (half the time of the general one at 61 × 61 tables)."""
-    return splu(M.tocsc(), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
-
-
 def _solve(design: _Design, parts: list[_Normal]) -> np.ndarray:
     n = sum(p.n for p in parts)
     G = parts[0].G.copy()
     for p in parts[1:]:
         G = G + p.G
     b = sum(p.b for p in parts)
-    lu = _factor(G + design.regulariser(n))
+    lu = splu((G + design.regulariser(n)).tocsc())
     return lu.solve(np.ascontiguousarray(b)).T  # (3, P)
 
 
@@ -150,16 +142,14 @@ def _residual(part: _Normal, t: np.ndarray) -> float:
     return float(np.sum(t.T * Gt) - 2 * np.sum(t.T * part.b) + part.c.sum())
 
 
-def fit_light_terms(
-    samples: list[PressSamples], bins: int, order: int, position_ridge: float = 1e-3, smoothing: float = SMOOTHING
-) -> LightTerms:
+def fit_light_terms(samples: list[PressSamples], bins: int, order: int, position_ridge: float = 1e-3) -> LightTerms:
     """Order 0: the table and the sink's k (a linear least squares); order 1: the low-rank position
     terms besides (``fit_low_rank``)."""
     if order == 1:
-        table, position, sink = fit_low_rank(samples, bins, position_ridge, smoothing=smoothing)
+        table, position, sink = fit_low_rank(samples, bins, position_ridge)
         rss, n = _low_rank_residual(samples, table, position, sink)
         return LightTerms(table, position, sink, math.sqrt(max(rss, 0.0) / (3 * n)))
-    design = _Design(bins, smoothing)
+    design = _Design(bins)
     parts = [_normal(design, s) for s in samples]
     t = _solve(design, parts)
     rss = sum(_residual(p, t) for p in parts)
@@ -189,22 +179,20 @@ def _features(A: sp.csr_matrix, s: PressSamples, t_ch: np.ndarray, rt_ch: np.nda
 LOW_RANK_ITERATIONS = 2
 
 
-def fit_low_rank(
-    samples: list[PressSamples], bins: int, ridge: float, base: np.ndarray | None = None, smoothing: float = SMOOTHING
-):
+def fit_low_rank(samples: list[PressSamples], bins: int, ridge: float, base: np.ndarray | None = None):
     """Tables T plus, per channel, a gain and a turn of T across the field (Tx = gx·T + rx·∂T/∂φ,
     Ty likewise) and the sink terms k, kx, ky: 7 numbers per channel beside the table, fitted with
     T in turns (the features of the previous T, which the position tables are made of, so that the
     model rendered is the one fitted). ``base``: the table-and-sink fit's entries to start from.
     Returns (table (3, N, N), position (3, 2, N, N), sink (3, 3))."""
-    design = _Design(bins, smoothing)
+    design = _Design(bins)
     A_T = [design.tables_of(design.matrix(s)) for s in samples]
     n = sum(s.n for s in samples)
     G = A_T[0].T @ A_T[0]
     for a in A_T[1:]:
         G = G + a.T @ a
     reg = design.regulariser(n)[: design.table_cols, : design.table_cols]
-    lu = _factor(G + reg)
+    lu = splu((G + reg).tocsc())
     if base is None:
         base = _solve(design, [_normal(design, smp) for smp in samples])[:, : design.table_cols]
     table = np.array(base, dtype=np.float64)
@@ -263,13 +251,13 @@ def _low_rank_residual(samples: list[PressSamples], table, position, sink) -> tu
     return rss, n
 
 
-def held_out_mae(samples: list[PressSamples], bins: int, smoothing: float = SMOOTHING) -> float:
+def held_out_mae(samples: list[PressSamples], bins: int) -> float:
     """The table-and-sink model's leave-one-press-out mean absolute error (grey levels, the shading
     applied) near the contacts: what the blur is chosen by. The squared residual over the whole fit
     window (what the tables are fitted to) chooses a blur that smooths the rim away to match the
     gel's relaxation further out; near the contact, as renders are scored, it does not. One press:
-    in-sample. Also what the smoothing is chosen by."""
-    design = _Design(bins, smoothing)
+    in-sample."""
+    design = _Design(bins)
     parts = [_normal(design, s) for s in samples]
     total = n = 0.0
     for k, held in enumerate(samples):
@@ -287,7 +275,7 @@ class OrderChoice:
     held_out_rms: dict[tuple[int, float], float]  # (order, ridge) → leave-one-press-out RMS (over the shading)
 
 
-def choose_order(samples: list[PressSamples], bins: int, smoothing: float = SMOOTHING) -> OrderChoice:
+def choose_order(samples: list[PressSamples], bins: int) -> OrderChoice:
     """The model whose terms, fitted on all presses but one, explain the one left out best, over
     every press: position order 0 (table and sink), or 1 (the low-rank position terms, with one of
     POSITION_RIDGES): the spatial terms are kept only where the presses' spread supports them.
@@ -295,7 +283,7 @@ def choose_order(samples: list[PressSamples], bins: int, smoothing: float = SMOO
     if len(samples) < 3:
         return OrderChoice(0, 0.0, {})
     scores: dict[tuple[int, float], float] = {}
-    design = _Design(bins, smoothing)
+    design = _Design(bins)
     parts = [_normal(design, s) for s in samples]
     rss = n = 0.0
     bases = []
@@ -308,7 +296,7 @@ def choose_order(samples: list[PressSamples], bins: int, smoothing: float = SMOO
     for ridge in POSITION_RIDGES:
         rss = n = 0.0
         for k, held in enumerate(samples):
-            fit = fit_low_rank(samples[:k] + samples[k + 1 :], bins, ridge, base=bases[k], smoothing=smoothing)
+            fit = fit_low_rank(samples[:k] + samples[k + 1 :], bins, ridge, base=bases[k])
             r, m = _low_rank_residual([held], *fit)
             rss, n = rss + r, n + m
         scores[(1, ridge)] = math.sqrt(max(rss, 0.0) / (3 * n))
