@@ -135,6 +135,14 @@ def split(
             "test_object; the other objects are split by RATIO and --by frame or run as usual. Default: none."
         ),
     ] = None,
+    hold_out_top: Annotated[
+        Optional[str],
+        typer.Option(
+            help="COMPONENT:N such as Fz:5: the N frames with the largest signed value of that wrench component "
+            "(Fx, Fy, Fz in N; Mx, My, Mz in N·mm; a press reads positive Fz, so Fz:N is the N hardest presses) "
+            "form the part test_force, never trained on; the rest is split by RATIO. Default: none."
+        ),
+    ] = None,
 ):
     """Split runs deterministically; wrench statistics come from the training part only. Every run file is
     verified whole first (schema, rows, every frame's checksum) and its identity recorded, so that train and
@@ -152,12 +160,20 @@ def split(
         by=by,
         allow_incomplete=allow_incomplete,
         hold_out=held,
+        hold_out_top=hold_out_top,
         warn=lambda m: typer.secho(m, fg=typer.colors.YELLOW, err=True),
     )
     sizes = ", ".join(f"{k} {len(v)}" for k, v in result.parts.items())
     typer.echo(f"{out}: {sizes} frames from {len(result.runs)} run(s) (by {by}, seed {seed})")
     if held:
         typer.echo(f"  held out (test_object): {', '.join(sorted(set(held)))}")
+    top = result.held_out_top
+    if top:
+        typer.echo(
+            f"  held out (test_force): the {top['frames']} frame(s) of largest {top['component']}, "
+            f"{top['smallest_held_out']:g}–{top['largest_held_out']:g} {top['unit']} "
+            f"(largest kept {top['largest_kept']:g} {top['unit']})"
+        )
 
 
 @app.command()

@@ -9,6 +9,12 @@ those frames.
 the other objects' frames are split by the ratio as usual. One split then measures
 both: ``test`` (unseen frames of the training objects) and ``test_object`` (objects
 never seen in training).
+
+``hold_out_top`` (``Fz:5``) sends the N frames with the largest signed value of one wrench
+component to one more part, ``test_force``, before the rest is split: the model is then tested
+on loads beyond any it trained on. The sign is the one recorded: a press reads positive Fz in
+this project (docs/first-day.md, docs/simulator.md), so ``Fz:N`` holds out the N hardest presses.
+Ties are broken by file order (run, then frame); a tie across the cut is warned about.
 """
 
 from __future__ import annotations
@@ -28,11 +34,22 @@ from common.table import finite_number
 from dataset.runs import RunSummary, open_run, summary_of
 from dataset.split_manifest import MANIFEST, SplitError, check_unchanged, load_split
 
-__all__ = ["MANIFEST", "SplitError", "check_unchanged", "load_split", "make_split", "parse_ratios"]
+__all__ = [
+    "MANIFEST",
+    "SplitError",
+    "check_unchanged",
+    "load_split",
+    "make_split",
+    "parse_hold_out_top",
+    "parse_ratios",
+]
 
 PART_NAMES = {2: ("train", "test"), 3: ("train", "val", "test")}
 HELD_OUT_PART = "test_object"  # every frame of the held-out objects
-TEST_PARTS = ("test", HELD_OUT_PART)  # the parts evaluation reports on, when present
+FORCE_PART = "test_force"  # the frames with the largest values of one wrench component (--hold-out-top)
+WRENCH_COMPONENTS = ("Fx", "Fy", "Fz", "Mx", "My", "Mz")  # the wrench columns, in order (acquisition/schema.py)
+WRENCH_UNITS = ("N", "N", "N", "N·mm", "N·mm", "N·mm")
+TEST_PARTS = ("test", HELD_OUT_PART, FORCE_PART)  # the parts evaluation reports on, when present
 PERCENTILES = (2, 50, 98)  # of the training wrench, per component: the range a force sweep covers
 
 
@@ -63,6 +80,79 @@ def parse_ratios(text: str) -> tuple[float, ...]:
     return tuple(p / total for p in parts)
 
 
+def parse_hold_out_top(text: str) -> tuple[str, int]:
+    """'Fz:5' → ('Fz', 5): a wrench component (any case) and a positive whole number of frames;
+    SplitError naming --hold-out-top and the value otherwise."""
+    name, colon, count = str(text).strip().partition(":")
+    known = {c.lower(): c for c in WRENCH_COMPONENTS}
+    example = "expected COMPONENT:N such as Fz:5 (COMPONENT one of " + ", ".join(WRENCH_COMPONENTS) + ")"
+    if not colon:
+        raise SplitError(f"--hold-out-top {text!r}: {example}")
+    component = known.get(name.strip().lower())
+    if component is None:
+        raise SplitError(f"--hold-out-top {text!r}: unknown wrench component {name.strip()!r}; {example}")
+    try:
+        n = int(count.strip())
+    except ValueError:
+        raise SplitError(f"--hold-out-top {text!r}: N {count.strip()!r} is not a whole number; {example}") from None
+    if n < 1:
+        raise SplitError(f"--hold-out-top {text!r}: N must be at least 1, got {n}")
+    return component, n
+
+
+def _hold_out_top(
+    top: tuple[str, int], rows: np.ndarray, wrench: list[np.ndarray], paths: list[str], n_parts: int, warn
+) -> tuple[np.ndarray, np.ndarray, dict]:
+    """(held rows, kept rows, split.json's record): the N rows with the largest signed value of the
+    component, ties broken by (run, frame) order. SplitError when N leaves nothing to split or a
+    value is not finite."""
+    component, n = top
+    column = WRENCH_COMPONENTS.index(component)
+    flag = f"--hold-out-top {component}:{n}"
+    if n >= len(rows):
+        raise SplitError(
+            f"{flag}: N must be less than the {len(rows)} frame(s) there are to split; the rest must still "
+            "fill the ratio's parts"
+        )
+    if len(rows) - n < n_parts:
+        raise SplitError(
+            f"{flag}: leaves {len(rows) - n} of the {len(rows)} frame(s), too few for the ratio's {n_parts} "
+            f"parts (each needs at least one frame); hold out at most {len(rows) - n_parts}"
+        )
+    values = np.array([wrench[int(r)][int(f), column] for r, f in rows], dtype=np.float64)
+    bad = ~np.isfinite(values)
+    if bad.any():
+        i = int(np.argmax(bad))
+        run, frame = rows[i]
+        raise SplitError(
+            f"{flag}: {paths[int(run)]} frame {int(frame)} has {component} = {values[i]}, not a finite number; "
+            "fix or drop that run first"
+        )
+    order = np.argsort(-values, kind="stable")  # rows come in (run, frame) order: ties keep it
+    chosen = np.zeros(len(rows), bool)
+    chosen[order[:n]] = True
+    held, kept = rows[chosen], rows[~chosen]
+    smallest_held, largest_kept = float(values[order[n - 1]]), float(values[order[n]])
+    unit = WRENCH_UNITS[column]
+    if smallest_held == largest_kept:
+        warn(
+            f"warning: {flag}: {component} = {smallest_held:g} {unit} at the cut is shared by frames on both "
+            "sides; the earlier frames (by run, then frame) were held out"
+        )
+    record = {
+        "part": FORCE_PART,
+        "component": component,
+        "column": column,
+        "frames": n,
+        "unit": unit,
+        "smallest_held_out": smallest_held,
+        "largest_held_out": float(values[order[0]]),
+        "largest_kept": largest_kept,
+        "order": "largest signed value first (a press reads positive Fz); ties by run, then frame",
+    }
+    return held, kept, record
+
+
 def _allocate(n: int, ratios: tuple[float, ...], what: str = "frame") -> list[int]:
     """Sizes summing to n, closest to the ratios (largest remainders), every part at least 1."""
     if n < len(ratios):
@@ -87,6 +177,7 @@ class Split:
     parts: dict[str, np.ndarray]
     wrench_mean: np.ndarray
     wrench_std: np.ndarray
+    held_out_top: dict | None = None  # split.json's record of --hold-out-top, when used
 
 
 def make_split(
@@ -98,9 +189,12 @@ def make_split(
     by: str = "frame",
     allow_incomplete: bool = False,
     hold_out: Sequence[str] = (),
+    hold_out_top: str | None = None,
     warn=print,
 ) -> Split:
-    """``hold_out``: object names whose frames all go to the ``test_object`` part (see the module docstring)."""
+    """``hold_out``: object names whose frames all go to the ``test_object`` part; ``hold_out_top``
+    (``Fz:5``): the frames with the largest values of a wrench component go to ``test_force`` (see
+    the module docstring)."""
     if by not in ("frame", "run", "object"):
         raise SplitError(f"--by must be frame, run or object, got {by!r}")
     held = sorted({name.strip() for name in hold_out if name.strip()})
@@ -110,6 +204,7 @@ def make_split(
             "other objects' frames --by frame (default) or --by run"
         )
     ratios = parse_ratios(ratios_text)
+    top = parse_hold_out_top(hold_out_top) if hold_out_top is not None else None
     names = PART_NAMES[len(ratios)]
     verified = [_verified(p) for p in paths]
     summaries = [v.summary for v in verified]
@@ -141,6 +236,11 @@ def make_split(
             raise SplitError(f"--hold-out {','.join(held)}: that is every object; keep at least one to train on")
         is_held = np.array([s.object_name in held for s in summaries])
         held_rows, rows = rows[is_held[rows[:, 0]]], rows[~is_held[rows[:, 0]]]
+    force_rows, force_record = None, None
+    if top is not None:
+        force_rows, rows, force_record = _hold_out_top(
+            top, rows, [v.wrench for v in verified], [s.path for s in summaries], len(ratios), warn=warn
+        )
     rng = np.random.default_rng(seed)
     if by == "frame":
         sizes = _allocate(len(rows), ratios)
@@ -150,7 +250,14 @@ def make_split(
         parts = {name: part[np.lexsort((part[:, 1], part[:, 0]))] for name, part in zip(names, chosen)}
     else:
         keys = [s.path if by == "run" else s.object_name for s in summaries]
-        groups = sorted({k for k, s in zip(keys, summaries) if s.object_name not in held})
+        left = set(np.unique(rows[:, 0]).tolist())  # runs --hold-out-top left frames of
+        groups = sorted(
+            {
+                k
+                for i, (k, s) in enumerate(zip(keys, summaries))
+                if s.object_name not in held and (top is None or i in left)
+            }
+        )
         sizes = _allocate(len(groups), ratios, what=by)
         shuffled = [groups[i] for i in rng.permutation(len(groups))]
         assignment, start = {}, 0
@@ -162,6 +269,8 @@ def make_split(
         parts = {name: rows[run_part[rows[:, 0]] == j] for j, name in enumerate(names)}
     if held:
         parts[HELD_OUT_PART] = held_rows
+    if force_rows is not None:
+        parts[FORCE_PART] = force_rows
     train = parts["train"]
     wrench = np.concatenate([v.wrench[train[train[:, 0] == i][:, 1]] for i, v in enumerate(verified)])
     mean = wrench.mean(axis=0) if len(wrench) else np.zeros(6)
@@ -197,9 +306,11 @@ def make_split(
         "wrench_percentiles": {f"p{q}": row.tolist() for q, row in zip(PERCENTILES, pct)},
         "wrench_stats_from": "train",
     }
+    if force_record is not None:
+        manifest["held_out_top"] = force_record
     out = Path(out)
     _write(out, parts, manifest)
-    return Split(out, [s.path for s in summaries], parts, mean, std)
+    return Split(out, [s.path for s in summaries], parts, mean, std, force_record)
 
 
 @dataclass(frozen=True)

@@ -94,6 +94,32 @@ def _check_manifest(path: Path, manifest) -> None:
             raise SplitError(f"{path}: [{key}] expected six finite numbers, got {vec!r}")
     if not all(v > 0 for v in manifest["wrench_std"]):
         raise SplitError(f"{path}: [wrench_std] expected positive numbers, got {manifest['wrench_std']!r}")
+    if "held_out_top" in manifest:
+        _check_held_out_top(path, manifest["held_out_top"], parts)
+
+
+def _check_held_out_top(path: Path, top, parts: dict) -> None:
+    """``held_out_top`` (dataset split --hold-out-top): its component, frame count and values, and a
+    ``test_force`` part of that many frames."""
+    ok = (
+        isinstance(top, dict)
+        and top.get("component") in ("Fx", "Fy", "Fz", "Mx", "My", "Mz")
+        and _whole(top.get("frames"))
+        and top["frames"] >= 1
+        and isinstance(top.get("unit"), str)
+        and all(_number(top.get(k)) for k in ("smallest_held_out", "largest_held_out", "largest_kept"))
+        and top.get("part") == "test_force"
+    )
+    if not ok:
+        raise SplitError(
+            f"{path}: [held_out_top] expected {{part, component (Fx..Mz), frames >= 1, unit, smallest_held_out, "
+            f"largest_held_out, largest_kept}}, got {top!r}"
+        )
+    if parts.get(top["part"]) != top["frames"]:
+        raise SplitError(
+            f"{path}: [held_out_top] says {top['frames']} frame(s) in part {top['part']!r}, [parts] says "
+            f"{parts.get(top['part'])!r}"
+        )
 
 
 def _load_part(directory: Path, name: str, count: int, runs: list[dict]) -> np.ndarray:

@@ -200,6 +200,9 @@ def summary(results: list[Result]) -> dict:
         out[part] = {
             # the calibrated render's k at the sweep's poses (the same poses and renders for every model)
             "render_exponent": _mean([s.get("render_area_exponent") for s in fz_first]),
+            # the real frames' k at the same poses (references matched by pose and force), where the data has them:
+            # what each run's own report holds its model to first (model/sweep_report.py, real_exponent)
+            "real_exponent_at_poses": _mean([s.get("real_area_exponent") for s in fz_first]),
             "candidates": rows,
             "baselines": {b["setting"]: b for b in first.get("baselines", [])},
             "physics_render": first.get("physics_render"),
@@ -211,7 +214,9 @@ def summary(results: list[Result]) -> dict:
 
 def _grew(s: dict) -> bool:
     """The contact at the last value past the training maximum is larger than at the maximum."""
-    last_inside = sum(s["inside_training_range"]) - 1
+    last_inside = s.get("last_inside_index", sum(s["inside_training_range"]) - 1)
+    if last_inside is None:
+        return False
     a, b = s["beyond_area_mm2"][-1], s["model_area_mm2"][last_inside]
     return a is not None and b is not None and a > b
 

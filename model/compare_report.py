@@ -58,13 +58,18 @@ def verdict(candidates: dict) -> str:
 
 
 def force_verdict(entry: dict) -> str:
-    """One line: each setting's Fz exponent against the one it is held to — the real frames' where their
+    """One line: each setting's Fz exponent against the one it is held to, as each run's own report
+    holds it (model/sweep_report.py, ``target_exponent``): the real frames' at the sweep's poses where
+    the data has frames there at several forces, else the real frames' across their poses where that
     interval lies above zero, else the calibrated render's at the sweep's poses — within ±30 %?"""
     from model.sweep_report import EXPONENT_TOLERANCE
 
     fe = entry.get("real_frames_exponent") or {}
     low, k_real = fe.get("low"), fe.get("k")
-    if k_real is not None and low is not None and low > 0:
+    at_poses = entry.get("real_exponent_at_poses")
+    if at_poses is not None and math.isfinite(at_poses):
+        target, source = float(at_poses), "the real frames at the sweep's poses"
+    elif k_real is not None and low is not None and low > 0:
         target, source = float(k_real), "the real frames"
     elif entry.get("render_exponent") is not None:
         target, source = float(entry["render_exponent"]), "the calibrated physics render at the sweep's poses"

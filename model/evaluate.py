@@ -291,8 +291,14 @@ def _force_sweep(ev, model, split_dir, data, items, opts: SweepOptions, seed, ma
     ev.sweep_poses = F.pose_runs(poses, {r: run(r).name for r, _ in poses})
     by_row = {(int(it["run"]), int(it["frame"])): it for it in items}
 
+    last_notes: list[str] = []  # why each frame of the last sweep has its physics channels elsewhere ("")
+
     def generate(p: int, wrenches: np.ndarray) -> list[np.ndarray]:
-        return _sweep_frames(model, by_row[poses[p]], run(poses[p][0]).wrench[poses[p][1]], wrenches, opts, seed)
+        frames, notes = _sweep_frames(
+            model, by_row[poses[p]], run(poses[p][0]).wrench[poses[p][1]], wrenches, opts, seed
+        )
+        last_notes[:] = notes
+        return frames
 
     renderers: dict = {}
     unavailable: list[str] = []
@@ -325,6 +331,8 @@ def _force_sweep(ev, model, split_dir, data, items, opts: SweepOptions, seed, ma
         threshold=threshold,
         log=lambda line: log(f"{ev.part}: {line}"),
         clock=clock,
+        notes=lambda: list(last_notes),
+        skipped=ev.sweep_skipped,
     )
     ev.sweep_summary = [F.summarise(s) for s in ev.sweeps]
     ev.sweep_ranges = ranges
@@ -374,14 +382,15 @@ def _frames_exponent(split_dir, runs: list[int], run, threshold: float, blur: fl
 
 
 def _sweep_frames(model: TrainedModel, base: dict, recorded: np.ndarray, wrenches: np.ndarray, opts, seed):
-    """The frames of one pose's sweep, one at a time from the same seed (every point starts from the same
-    noise); a physics model's channels rendered under each swept wrench: for Fz at the depth where the
-    simulator's contact gives it, as `generate` renders a pose given without z."""
+    """(frames, notes) of one pose's sweep, one at a time from the same seed (every point starts from the
+    same noise); a physics model's channels rendered under each swept wrench: for Fz at the depth where
+    the simulator's contact gives it, as `generate` renders a pose given without z. A note per frame
+    says why its channels are not at that Fz (past what the gel can give: rendered at its limit), ""."""
     import torch
 
     from dataset.condition import normalise_wrench
 
-    out = []
+    out, notes = [], []
     for w in wrenches:
         it = dict(base)
         norm = normalise_wrench(w, model.wrench_mean, model.wrench_std).astype(np.float32)
@@ -391,7 +400,8 @@ def _sweep_frames(model: TrainedModel, base: dict, recorded: np.ndarray, wrenche
             it["wrench_raw"] = np.asarray(w, dtype=float)
             it["depth_from_fz"] = bool(w[2] != recorded[2])
         out += list(model.generate_items([it], steps=opts.steps, sampler=opts.sampler, seed=seed))
-    return out
+        notes.append(str(it.get("physics_note") or ""))
+    return out, notes
 
 
 def _train_percentiles(split_dir, data: TactileDataset, qs) -> dict:
@@ -458,7 +468,13 @@ def _context(model: TrainedModel, data: TactileDataset, part: str, frames: int) 
                 else "no object held out of training"
             )
         )
-        + f"; trained on: {', '.join(m.get('objects', {}).get('train', [])) or '?'}",
+        + f"; trained on: {', '.join(m.get('objects', {}).get('train', [])) or '?'}"
+        + (
+            f"; the {t['frames']} frame(s) of largest {t['component']} ({t['smallest_held_out']:g}–"
+            f"{t['largest_held_out']:g} {t['unit']}) held out of training (part test_force)"
+            if (t := m.get("held_out_top"))
+            else ""
+        ),
         "machine": f"{describe()}, device {device}, torch "
         f"{torch.__version__} with {torch.get_num_threads()} thread(s); load average at the start "
         f"{os.getloadavg()[0]:.1f} (timings are warm, after one untimed batch, and share the machine "

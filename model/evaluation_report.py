@@ -25,6 +25,7 @@ from model.eval_results import PAPER_ROWS, Evaluation, Row
 PART_TEXT = {
     "test": "unseen frames of the training objects",
     "test_object": "objects held out of training, never seen by the model",
+    "test_force": "the frames of largest load held out of training (dataset split --hold-out-top)",
     "val": "the validation part",
 }
 

@@ -62,6 +62,8 @@ class PoseSweep:
     reference_images: list[np.ndarray | None] = field(default_factory=list)
     reference_mse: list[float | None] = field(default_factory=list)  # generated against reference, 0–255²
     outside_change: list[float] = field(default_factory=list)  # mean change away from the contact, 0–255
+    notes: list[str] = field(default_factory=list)  # per point: why its physics channels are not at the value ("")
+    range_note: str = ""  # how this pose's range differs from the split's training range, in words
 
 
 def _series(measures: Sequence[ContactMeasure | None], key: str, keep: Sequence[bool] | None = None) -> np.ndarray:
@@ -80,7 +82,9 @@ def summarise(sweep: PoseSweep, area_tolerance_mm2: float = 0.0) -> dict:
     the exponents k of area ∝ Fz^k. Beyond the training range: the area and the change away from the
     contact (a model that breaks down there shows stripes or blotches in the background)."""
     n = len(sweep.values)
-    inside = np.asarray(sweep.inside if sweep.inside else [True] * n, dtype=bool)
+    limited = np.array([bool(t) for t in sweep.notes] if len(sweep.notes) == n else [False] * n, dtype=bool)
+    in_range = np.asarray(sweep.inside if sweep.inside else [True] * n, dtype=bool)
+    inside, past = in_range & ~limited, ~in_range & ~limited  # the model's points: those it was conditioned at
     kinds = sweep.kinds if sweep.kinds else [REAL if m is not None else "" for m in sweep.reference]
     x = np.asarray(sweep.values, dtype=np.float64)
     xi = x[inside]
@@ -93,9 +97,15 @@ def summarise(sweep: PoseSweep, area_tolerance_mm2: float = 0.0) -> dict:
         "sources": list(sweep.sources),
         "kinds": list(kinds),
         "model_area_mm2": _series(sweep.model, "area_mm2").tolist(),
+        "range_note": sweep.range_note,
+        "usable_points": int(inside.sum()),
+        "last_inside_index": int(np.nonzero(inside)[0][-1]) if inside.any() else None,
     }
-    for kind, tag in KINDS.items():
-        is_kind = np.array([k == kind for k in kinds]) & inside
+    if limited.any():  # left out of every measure below, and said
+        out["render_limited_values"] = np.asarray(sweep.values)[limited].tolist()
+        out["render_limited_note"] = next(t for t in sweep.notes if t)
+    for kind, tag in KINDS.items():  # the references over the whole range: the same for every model
+        is_kind = np.array([k == kind for k in kinds]) & in_range
         out[f"references_{tag}"] = int(is_kind.sum())
         out[f"{tag}_area_mm2"] = _series(sweep.reference, "area_mm2", is_kind).tolist()
     for key in MEASURES:
@@ -125,19 +135,19 @@ def summarise(sweep: PoseSweep, area_tolerance_mm2: float = 0.0) -> dict:
     if sweep.component == "Fz":
         out["area_exponent"] = power_exponent(xi, model_area[inside])
         for tag in KINDS.values():
-            r = np.asarray(out[f"{tag}_area_mm2"], dtype=np.float64)[inside]
-            have = np.isfinite(r)
-            enough = have.sum() >= 3  # an exponent through two points says nothing of its fit
-            out[f"{tag}_area_exponent"] = power_exponent(xi[have], r[have]) if enough else float("nan")
+            r = np.asarray(out[f"{tag}_area_mm2"], dtype=np.float64)
+            have = np.isfinite(r) & in_range  # an exponent through two points says nothing of its fit
+            out[f"{tag}_area_exponent"] = power_exponent(x[have], r[have]) if have.sum() >= 3 else float("nan")
+            both = have & inside
             out[f"area_exponent_at_{tag}"] = (
-                power_exponent(xi[have], model_area[inside][have]) if enough else float("nan")
+                power_exponent(x[both], model_area[both]) if both.sum() >= 3 else float("nan")
             )
     change = np.asarray(sweep.outside_change or [float("nan")] * n, dtype=np.float64)
     out["outside_change_in_range"] = _nanmean(change[inside])
-    if (~inside).any():
-        out["beyond_values"] = x[~inside].tolist()
-        out["beyond_area_mm2"] = model_area[~inside].tolist()
-        out["outside_change_beyond"] = _nanmean(change[~inside])
+    if past.any():
+        out["beyond_values"] = x[past].tolist()
+        out["beyond_area_mm2"] = model_area[past].tolist()
+        out["outside_change_beyond"] = _nanmean(change[past])
     for kind, tag in KINDS.items():
         mses = [v for v, k, ok in zip(sweep.reference_mse, kinds, inside) if v is not None and k == kind and ok]
         out[f"image_mse_{tag}"] = float(np.mean(mses)) if mses else float("nan")
@@ -184,9 +194,13 @@ def sweep_pose(
     inside: Sequence[bool] | None = None,
     threshold: float = THRESHOLD,
     blur_px: float = 1.0,
+    notes: Callable[[], Sequence[str]] | None = None,
+    range_note: str = "",
 ) -> PoseSweep:
     """Generate the sweep of ``component`` at one pose (the other components at ``base_wrench``),
-    measure every frame and its reference (a ``Reference``, or (image, source) for a real frame)."""
+    measure every frame and its reference (a ``Reference``, or (image, source) for a real frame).
+    ``notes``: called after ``generate``, per value why the model's physics channels could not be
+    rendered at it ("" where they were; such points are left out of every measure, and said)."""
     k = COMPONENTS[component]
     wrenches = np.repeat(np.asarray(base_wrench, dtype=np.float64)[None], len(values), axis=0)
     wrenches[:, k] = values
@@ -218,6 +232,8 @@ def sweep_pose(
             for img, r in zip(images, refs)
         ],
         [outside_change(img, no_contact, m, blur_px) for img, m in zip(images, model)],
+        list(notes()) if notes is not None else [],
+        range_note,
     )
 
 
@@ -242,6 +258,30 @@ def training_range(percentiles: dict, component: str) -> tuple[float, float]:
     if not (math.isfinite(low) and math.isfinite(high)):
         raise ValueError(f"the split's {component} percentiles are not finite: {low}, {high}")
     return low, high
+
+
+def pose_range(split_range: tuple[float, float], recorded: np.ndarray, component: str, run: str) -> tuple:
+    """(low, high, note): the split's training range of ``component`` within the 2nd–98th percentile
+    of what the pose's run recorded (``recorded``: that component over its frames); the note says
+    when that narrows it (and, when nothing is left, why the pose is not swept)."""
+    low, high = split_range
+    values = np.asarray(recorded, dtype=np.float64)
+    values = values[np.isfinite(values)]
+    if not len(values):
+        return low, low, f"{run} recorded no finite {component}"
+    run_low, run_high = (float(v) for v in np.percentile(values, [2, 98]))
+    lo, hi = max(low, run_low), min(high, run_high)
+    unit = UNITS[component]
+    if lo <= low and hi >= high:
+        return low, high, ""
+    words = (
+        f"the split's training range {low:+.2f} … {high:+.2f} {unit} within {run}'s own "
+        f"{run_low:+.2f} … {run_high:+.2f}"
+    )
+    if not hi - lo > 1e-6 * max(1.0, abs(lo), abs(hi)):
+        return lo, lo, f"{words}: nothing left"
+    past = "" if hi >= high else "; no value past the training maximum (this run does not reach it)"
+    return lo, hi, f"swept over {lo:+.2f} … {hi:+.2f} {unit}: {words}{past}"
 
 
 def swept_ranges(percentiles: dict, components: Sequence[str]) -> tuple[dict[str, tuple[float, float]], dict[str, str]]:
@@ -319,13 +359,22 @@ def run_force_sweep(
     threshold: float = THRESHOLD,
     log: Callable[[str], None] = lambda line: None,
     clock: Callable[[], float] = time.perf_counter,
+    notes: Callable[[], Sequence[str]] | None = None,
+    skipped: dict[str, str] | None = None,
 ) -> list[PoseSweep]:
     """Every component of ``ranges`` swept at every pose (``generate(pose index, raw wrenches)``),
     each point beside its reference (model/sweep_references.py); Fz also at two values up to
-    ``beyond`` × its range past the training maximum (no reference there)."""
+    ``beyond`` × its range past the training maximum (no reference there). At each pose the range
+    is the training range within what the pose's own run recorded (``pose_range``): past that the
+    run has no real frame and its render no depth to match, so a value there is not "in range".
+    ``skipped`` gets why a component was not swept at a pose (swept at no pose: why not at all); a
+    sweep at none of whose in-range values the model's channels could be rendered is left out, and
+    said there too."""
     eta = Eta(len(poses) * len(ranges), clock)
     swept = tuple(COMPONENTS[name] for name in ranges)
     out: list[PoseSweep] = []
+    why: dict[str, list[str]] = {name: [] for name in ranges}
+    done = 0
     for p, (r, f) in enumerate(poses):
         run = runs[r]
         x, y, z, theta = (float(v) for v in run.pose[f])
@@ -334,27 +383,49 @@ def run_force_sweep(
             f"{run.name} frame {f}: x {x:+.2f} y {y:+.2f} z {z:+.2f} mm theta {theta:+.1f} deg, "
             f"Fz {w[2]:.2f} N Fx {w[0]:+.2f} Fy {w[1]:+.2f} Mz {w[5]:+.1f} Nmm"
         )
-        for name, (low, high) in ranges.items():
+        for name, split_range in ranges.items():
+            low, high, range_note = pose_range(split_range, run.wrench[:, COMPONENTS[name]], name, run.name)
+            if not high > low:
+                why[name].append(f"{name} at pose {p + 1}: not swept ({range_note})")
+                log(f"force sweep: {why[name][-1]}")
+                continue
             values = sweep_values(low, high, points)
             refs = references_at(run, r, f, COMPONENTS[name], name, values, std, swept, physics)
-            extra = beyond_values(low, high, beyond) if name == "Fz" else np.zeros(0)
-            out.append(
-                sweep_pose(
-                    generate,
-                    p,
-                    name,
-                    np.concatenate([values, extra]),
-                    w,
-                    no_contact=run.no_contact,
-                    mm_per_px=run.mm_per_px,
-                    references=refs + [NONE] * len(extra),
-                    label=label,
-                    run=run.name,
-                    inside=[True] * len(values) + [False] * len(extra),
-                    threshold=threshold,
-                    blur_px=blur_px,
-                )
+            reaches_max = high >= split_range[1]  # past the training maximum only where the run reaches it
+            extra = beyond_values(low, high, beyond) if name == "Fz" and reaches_max else np.zeros(0)
+            swept_here = sweep_pose(
+                generate,
+                p,
+                name,
+                np.concatenate([values, extra]),
+                w,
+                no_contact=run.no_contact,
+                mm_per_px=run.mm_per_px,
+                references=refs + [NONE] * len(extra),
+                label=label,
+                run=run.name,
+                inside=[True] * len(values) + [False] * len(extra),
+                threshold=threshold,
+                blur_px=blur_px,
+                notes=notes,
+                range_note=range_note,
             )
-            done = len(out)
+            usable = [not t for t, ok in zip(swept_here.notes, swept_here.inside) if ok]
+            if swept_here.notes and not any(usable):
+                reason = next(t for t in swept_here.notes if t)
+                why[name].append(
+                    f"{name} at pose {p + 1}: no value in range could be rendered for the model ({reason})"
+                )
+                log(f"force sweep: {why[name][-1]}")
+            else:
+                out.append(swept_here)
+            done += 1
             log(f"force sweep: {name} at pose {p + 1}/{len(poses)}: {done}/{eta.total} sweeps, {eta.line(done)}")
+    for name, reasons in why.items():
+        if skipped is None or not reasons:
+            continue
+        if any(s.component == name for s in out):
+            skipped.update({line.split(":")[0]: line for line in reasons})
+        else:
+            skipped[name] = f"{name}: swept at no pose (" + "; ".join(reasons) + ")"
     return out

@@ -47,7 +47,9 @@ def add_physics(items: list[dict], size: int, spec: PhysicsSpec) -> None:
         wrench = np.asarray(raw, dtype=float) if raw is not None else recorded[path][int(it["frame"])]
         pose = it["pose"].numpy().astype(float)
         if it.get("depth_from_fz"):  # the depth where the simulator's contact gives this Fz
-            pose, _ = force_pose(renderers[path], pose, float(wrench[2]))
+            pose, note = force_pose(renderers[path], pose, float(wrench[2]))
+            if note and float(wrench[2]) > 0:  # past what the gel can give (no load renders the touch, rightly)
+                it["physics_note"] = note
         it["physics"] = image_to_tensor(resize(renderers[path].render(pose, wrench), size))
 
 

@@ -158,7 +158,7 @@ def verdict(summaries: list[dict], frames: FramesExponent | None, skipped: dict[
         line += f"; the real frames' exponent: {why_not or source}"
     beyond = [s for s in fz if s.get("beyond_values")]
     if beyond:
-        grew = sum(s["beyond_area_mm2"][-1] > s["model_area_mm2"][sum(s["inside_training_range"]) - 1] for s in beyond)
+        grew = sum(_grew(s) for s in beyond)
         inside = _mean([s["outside_change_in_range"] for s in beyond])
         past = _mean([s["outside_change_beyond"] for s in beyond])
         line += (
@@ -166,6 +166,27 @@ def verdict(summaries: list[dict], frames: FramesExponent | None, skipped: dict[
             f"away from the contact is {_f(past, '{:.1f}')} (in range {_f(inside, '{:.1f}')}, 0–255)"
         )
     return line + "."
+
+
+def _grew(s: dict) -> bool:
+    """The contact at the last value past the training maximum is larger than at the last value in
+    range the model was conditioned at."""
+    last = s.get("last_inside_index", sum(s["inside_training_range"]) - 1)
+    return last is not None and s["beyond_area_mm2"][-1] > s["model_area_mm2"][last]
+
+
+def pose_notes(summaries: list[dict]) -> list[str]:
+    """One line per sweep whose range was narrowed to what its pose's run recorded, or whose model
+    channels could not be rendered at some values (those values left out of every measure)."""
+    lines = []
+    for s in summaries:
+        where = f"{s['component']} at pose {s['pose']}"
+        if s.get("range_note"):
+            lines.append(f"- {where}: {s['range_note']}")
+        if s.get("render_limited_values"):
+            values = ", ".join(f"{v:.2f}" for v in s["render_limited_values"])
+            lines.append(f"- {where}: {values} left out of every measure: {s['render_limited_note']}")
+    return lines
 
 
 def sweep_section(ev, out: Path, suffix: str, figure) -> list[str]:
@@ -186,7 +207,8 @@ def sweep_section(ev, out: Path, suffix: str, figure) -> list[str]:
         "",
     ]
     lines += [f"- {why}" for why in ev.sweep_skipped.values()]
-    if ev.sweep_skipped:
+    lines += pose_notes(ev.sweep_summary)
+    if ev.sweep_skipped or pose_notes(ev.sweep_summary):
         lines.append("")
     lines += response_table(ev.sweep_summary, ev.sweep_ranges) + [""]
     lines += reference_table(ev.sweep_summary, ev.sweep_ranges)

@@ -35,7 +35,14 @@ from objects.pose import Pose
 from sensor_sim.contact_find import CalibrationError, Contact, find_contact
 from sensor_sim.elastomer import Elastomer
 from sensor_sim.light import LightModel, normal_lookup
-from sensor_sim.light_fit import OrderChoice, PressSamples, choose_order, fit_light_terms, held_out_mae
+from sensor_sim.light_fit import (
+    POSITION_RIDGES,
+    OrderChoice,
+    PressSamples,
+    choose_order,
+    fit_light_terms,
+    held_out_mae,
+)
 from sensor_sim.noise import SensorNoise
 
 __all__ = ["CalibrationError", "CalibrationResult", "Contact", "Press", "find_contact", "fit_optics"]
@@ -45,7 +52,8 @@ FIT_RADII = 3.0  # pixels within this many contact radii of a press enter the fi
 NEAR_RADII = 1.5  # "near the contact": where the blur is chosen (and renders are scored)
 SAMPLE_STEP = 2  # every second pixel (rows and columns) enters the fit
 BLUR_MAX_MM = 0.5  # the optical blur's range is [0, BLUR_MAX_MM]
-MIN_POSITION_PRESSES, MIN_SPAN = 4, 0.4  # presses needed, and the share of the field they span, for position terms
+MIN_POSITION_PRESSES, MIN_SPAN = 3, 0.4  # presses needed, and the share of the field they span, for position terms
+MIN_CHOICE_PRESSES = 4  # fewer: too few to judge the position terms by leaving a press out (two left)
 START_BLUR_MM = 0.1  # the first light's, which the contacts are first refined under
 BLUR_STEPS = 6  # golden-section steps on the blur (to ~0.01 mm over the whole range)
 REFINE_ITERATIONS = 8
@@ -260,20 +268,34 @@ class _Fitter:
 
     def spread(self, contacts: list[Contact]) -> bool:
         """Whether the presses span enough of the field for position terms (MIN_POSITION_PRESSES or
-        more, their centres over at least MIN_SPAN of the frame's width and of its height); if not,
-        a note says so and the light is the same everywhere but for the background's shading."""
+        more, their centres over at least MIN_SPAN of the frame's width or of its height); if not,
+        a note says so and the light is the same everywhere but for the background's shading.
+        Beyond the span the presses covered, the terms are held at its edge (``position_range``)."""
         h, w = self.bg.shape[:2]
         xs = [c.centre_x_px for c in contacts]
         ys = [c.centre_y_px for c in contacts]
         span_x, span_y = (max(xs) - min(xs)) / w, (max(ys) - min(ys)) / h
-        if len(contacts) >= MIN_POSITION_PRESSES and span_x >= MIN_SPAN and span_y >= MIN_SPAN:
+        if len(contacts) >= MIN_POSITION_PRESSES and max(span_x, span_y) >= MIN_SPAN:
             return True
         self.notes.append(
             f"the presses span {span_x:.0%} of the frame's width and {span_y:.0%} of its height "
             f"({len(contacts)} presses): the light's change across the field needs {MIN_POSITION_PRESSES} or more "
-            f"spanning {MIN_SPAN:.0%} of both, so it is taken as the same everywhere (shaded by the background)"
+            f"spanning {MIN_SPAN:.0%} of either, so it is taken as the same everywhere (shaded by the background)"
         )
         return False
+
+    def order(self, samples: list[PressSamples]) -> OrderChoice:
+        """The position terms' order and ridge: by leaving each press out (``choose_order``) from
+        MIN_CHOICE_PRESSES presses; with fewer (two left when one is out: too few to judge a change
+        across the field), the terms with the stronger of the ridges, and a note says so."""
+        if len(samples) >= MIN_CHOICE_PRESSES:
+            return choose_order(samples, TABLE_BINS)
+        ridge = max(POSITION_RIDGES)
+        self.notes.append(
+            f"{len(samples)} presses: too few to check the light's change across the field by leaving one out; "
+            f"fitted with the stronger ridge ({ridge:g}) and held at the presses' span beyond it"
+        )
+        return OrderChoice(1, ridge, {})
 
     def position_range(self, contacts: list[Contact]) -> tuple[float, float, float, float]:
         """(x̃ low, x̃ high, ỹ low, ỹ high) the presses covered (centres ± contact radii)."""
@@ -385,7 +407,7 @@ def fit_optics(
     blur = fitter.blur(contacts, sinks)
     if fitter.spread(contacts):
         samples = [fitter.samples(p, c, s, blur) for p, c, s in zip(presses, contacts, sinks)]
-        order = choose_order(samples, TABLE_BINS)
+        order = fitter.order(samples)
     else:
         order = order0
     light = fitter.light(contacts, sinks, blur, order)

@@ -32,7 +32,7 @@ REGIONS = ("top-left", "top", "top-right", "left", "centre", "right", "bottom-le
 # What a region without a press costs, measured (bench/optics_bench.py, docs/benchmarks.md): near the
 # contact, the error relative to the background's for presses spread over the field and for presses
 # in one quadrant only (the others then rendered from the light's extrapolation).
-SPREAD_RATIO, ONE_QUADRANT_RATIO = "18-21 %", "23-30 %"
+SPREAD_RATIO, ONE_QUADRANT_RATIO = "18-19 %", "23-30 %"
 
 
 @dataclass(frozen=True)

@@ -14,7 +14,7 @@ from sensor_sim.calibration_report import field_coverage
 from sensor_sim.contact_find import find_contact
 from sensor_sim.elastomer import Elastomer
 from sensor_sim.light import LightModel
-from sensor_sim.light_fit import rotation_derivative
+from sensor_sim.light_fit import POSITION_RIDGES, rotation_derivative
 from sensor_sim.press_render import PressRender
 
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "data"
@@ -90,6 +90,25 @@ def test_a_synthetic_sensor_with_position_dependent_lights_is_recovered_from_fiv
     with_terms = np.abs(fitted.render(fitted.pose_of_pixel(290.0, 120.0, -0.7)) - real).mean()
     without = np.abs(plain.render(plain.pose_of_pixel(290.0, 120.0, -0.7)) - real).mean()
     assert with_terms < 0.5 * without
+
+
+def test_three_presses_across_the_field_fit_the_position_terms_with_the_stronger_ridge_and_say_so():
+    bg = background()
+    truth = PressRender(provisional_profile(bg, MM_PER_PX, GEL, position_light(bg)), sphere(2 * BALL_MM))
+    rng = np.random.default_rng(7)
+    places = [(160.0, 120.0, 0.7), (262.0, 170.0, 0.8), (58.0, 165.0, 0.75)]  # across the width, not the height
+    presses = [Press(pressed(truth, bg, x, y, d, rng), BALL_MM) for x, y, d in places]
+    fit = fit_optics(bg, presses, MM_PER_PX, gel=GEL)
+    assert fit.order.order == 1 and fit.light.position_bgr is not None, fit.order
+    assert fit.order.position_ridge == max(POSITION_RIDGES)
+    assert any("too few to check the light's change across the field" in note for note in fit.notes)
+    fitted = PressRender(provisional_profile(bg, MM_PER_PX, GEL, fit.light), sphere(2 * BALL_MM))
+    flat = LightModel(fit.light.table_bgr, fit.light.blur_mm, fit.light.shading, fit.light.reference_bgr)
+    plain = PressRender(provisional_profile(bg, MM_PER_PX, GEL, flat), sphere(2 * BALL_MM))
+    real = truth.render(truth.pose_of_pixel(285.0, 120.0, -0.7)).astype(np.float32)  # no press showed it
+    with_terms = np.abs(fitted.render(fitted.pose_of_pixel(285.0, 120.0, -0.7)) - real).mean()
+    without = np.abs(plain.render(plain.pose_of_pixel(285.0, 120.0, -0.7)) - real).mean()
+    assert with_terms < without
 
 
 def test_presses_in_one_corner_keep_the_light_the_same_over_the_field_and_say_where_presses_are_missing():

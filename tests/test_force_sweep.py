@@ -33,7 +33,7 @@ def hertz(wrench: np.ndarray) -> np.ndarray:
 NO_CONTACT = np.full((SIZE, SIZE, 3), GREY, np.uint8)
 
 
-def sweep(generator, component, values, references=None, base=(0.0, 0.0, 2.0, 0.0, 0.0, 0.0), blur_px=1.0):
+def sweep(generator, component, values, references=None, base=(0.0, 0.0, 2.0, 0.0, 0.0, 0.0), blur_px=1.0, **more):
     refs = references if references is not None else [(None, "")] * len(values)
     return F.sweep_pose(
         lambda p, wrenches: [generator(w) for w in wrenches],
@@ -45,6 +45,7 @@ def sweep(generator, component, values, references=None, base=(0.0, 0.0, 2.0, 0.
         mm_per_px=MM_PER_PX,
         references=refs,
         blur_px=blur_px,
+        **more,
     )
 
 
@@ -271,3 +272,71 @@ def test_without_a_real_exponent_the_model_is_held_to_the_render_at_its_poses():
     line = verdict([s], falling, {})
     assert "for the physics render at the sweep's poses (1 pose(s)): within ±30%" in line
     assert "interval [-1.05, -0.16] that lies below zero" in line
+
+
+def test_a_pose_is_swept_only_over_what_its_own_run_recorded_and_says_so(monkeypatch):
+    recorded = np.linspace(0.0, 2.4, 50)  # this run pressed to 2.4 N; the split's training range reaches 7.2 N
+    low, high, note = F.pose_range((1.2, 7.2), recorded, "Fz", "sphere4mm.h5")
+    assert low == pytest.approx(1.2) and high == pytest.approx(np.percentile(recorded, 98))
+    assert "sphere4mm.h5" in note and "no value past the training maximum" in note
+    assert F.pose_range((1.2, 7.2), np.linspace(0.0, 9.0, 50), "Fz", "sphere10mm.h5") == (1.2, 7.2, "")
+    low, high, note = F.pose_range((-1.0, 1.0), np.zeros(30), "Fx", "press.h5")  # a run without shear
+    assert not high > low and "nothing left" in note
+
+    def hertz_gen(p, ws):
+        return [hertz(w) for w in ws]
+
+    run = R.RunData(
+        "sphere4mm.h5",
+        np.c_[np.zeros((50, 2)), recorded, np.zeros((50, 3))],
+        np.zeros((50, 4)),
+        NO_CONTACT,
+        MM_PER_PX,
+        SIZE,
+    )
+    monkeypatch.setattr(F, "references_at", lambda *a, **k: [R.NONE] * len(a[5]))  # no run file to match in
+    lines, skipped = [], {}
+    out = F.run_force_sweep(
+        hertz_gen,
+        {0: run},
+        [(0, 49)],
+        {"Fz": (1.2, 7.2), "Fx": (-1.0, 1.0)},
+        np.ones(6),
+        points=5,
+        beyond=0.5,
+        log=lines.append,
+        skipped=skipped,
+    )
+    assert [s.component for s in out] == ["Fz"]  # Fx has nothing left at this pose: not swept, and said
+    assert any("Fx at pose 1: not swept" in line for line in lines)
+    assert "swept at no pose" in skipped["Fx"] and "nothing left" in skipped["Fx"]  # the report says why
+    assert max(out[0].values) <= np.percentile(recorded, 98) + 1e-9  # no "in range" value past the run, no beyond
+    assert all(out[0].inside) and "sphere4mm.h5" in out[0].range_note
+
+
+def test_values_the_render_could_not_reach_are_left_out_of_every_measure_and_said():
+    values = F.sweep_values(1.0, 8.0, 5)
+
+    def clamped(w):  # the model's channels stop at the gel's limit past 4.5 N: its picture stops growing
+        return hertz(np.array([0, 0, min(float(w[2]), 4.5), 0, 0, 0]))
+
+    limit = "past what the gel gives; rendered at 2.4 mm"
+    notes = ["" if v <= 4.5 else limit for v in values]
+    s = F.summarise(sweep(clamped, "Fz", values, [R.NONE] * 5, blur_px=0.0, notes=lambda: notes))
+    assert s["render_limited_values"] == pytest.approx([6.25, 8.0]) and s["render_limited_note"] == limit
+    assert s["area_exponent"] == pytest.approx(2 / 3, abs=0.08)  # from the three points the render reached
+    assert "beyond_values" not in s  # the left-out values are not "past the training maximum" either
+    from model.sweep_report import pose_notes
+
+    assert any("left out of every measure" in line and limit in line for line in pose_notes([s]))
+
+
+def test_past_the_maximum_compares_with_the_last_value_the_model_was_conditioned_at():
+    values = np.concatenate([F.sweep_values(1.0, 8.0, 5), F.beyond_values(1.0, 8.0, 1.0)])
+    inside = [True] * 5 + [False] * 2
+    notes = ["no depth for this value"] + [""] * 6  # the lowest value left out, the rest measured
+    s = F.summarise(sweep(hertz, "Fz", values, [R.NONE] * 7, blur_px=0.0, inside=inside, notes=lambda: notes))
+    assert s["last_inside_index"] == 4 and s["usable_points"] == 4
+    assert "keeps growing at 1/1 poses" in verdict([s], None, {})
+    everything = F.summarise(sweep(hertz, "Fz", values[:5], [R.NONE] * 5, blur_px=0.0, notes=lambda: ["limit"] * 5))
+    assert everything["last_inside_index"] is None and math.isnan(everything["area_exponent"])

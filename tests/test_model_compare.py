@@ -139,3 +139,18 @@ def test_the_force_decides_the_depth_of_the_physics_render():
     assert at[2] == -3.0 and "beyond" in note and "rendered at 3 mm" in note  # past the gel: its deepest
     at, note = force_pose(_Renderer(), (0.0, 0.0, -0.5, 0.0), 0.0)
     assert at[2] == 0.0 and note.startswith("no load")
+
+
+def test_the_comparison_holds_settings_to_the_same_exponent_as_each_runs_report():
+    from model.compare_report import force_verdict
+
+    entry = {
+        "real_exponent_at_poses": 0.51,  # real frames at the sweep's poses at several forces
+        "real_frames_exponent": {"k": 0.62, "low": 0.56, "high": 0.68},
+        "render_exponent": 0.66,
+        "candidates": {"plane": {"k": {"mean": 0.48, "std": 0.01, "low": 0.47, "high": 0.49, "n": 3}}},
+    }
+    line = force_verdict(entry)
+    assert "held to +0.51" in line and "the real frames at the sweep's poses" in line and "(within)" in line
+    entry["real_exponent_at_poses"] = None  # none at the poses: the frames across poses (interval above zero)
+    assert "held to +0.62" in force_verdict(entry)

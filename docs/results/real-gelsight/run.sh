@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # The whole pipeline on real GelSight presses: calibrate -> import with the profile -> split ->
-# train k seeds per setting -> evaluate -> compare.md. Usage (from the repository root, venv active
+# train k seeds per setting -> evaluate -> compare.md, then the same on a split that holds out the
+# five largest presses (held-out/compare.md). Usage (from the repository root, venv active
 # or .venv present):
 #
 #   docs/results/real-gelsight/run.sh DATA OUT [STEPS] [SEEDS]
@@ -38,3 +39,13 @@ mkdir -p "$OUT"
     --candidate physics+embedding,physics_depth=force,target=physics_residual \
     --seeds "$SEEDS" --steps "$STEPS" --threads 1 --settings ddim:10
 echo "report: $OUT/compare/compare.md"
+# 5. the held-out split: the 5 presses of largest Fz (a press reads positive Fz; here 1.41-1.78 N) form
+#    the part test_force, never trained on, and the other 19 are split 8:2 (15 training, 4 test
+#    frames); three settings x SEEDS as in 4, but batches of 15: a batch may not exceed the 15
+#    training frames. Evaluated on test and test_force, the force sweep over the training range
+"$BIN/dataset" split 8:2 "$OUT/gelsight.h5" --out "$OUT/held-out/split" --hold-out-top Fz:5
+"$BIN/compare" --data "$OUT/held-out/split" --out "$OUT/held-out/compare" \
+    --candidate plane --candidate physics,physics_depth=force \
+    --candidate physics,physics_depth=force,target=physics_residual \
+    --seeds "$SEEDS" --steps "$STEPS" --batch-size 15 --threads 1 --settings ddim:10
+echo "held-out report: $OUT/held-out/compare/compare.md"
