@@ -60,8 +60,10 @@ def known_protocol(name: str) -> str:
 
     from protocols.spec import protocol_names
 
+    if Path(name).suffix == ".toml":  # a file: the library is not looked at (it may not be readable)
+        return name
     names = protocol_names()
-    if name in names or Path(name).suffix == ".toml":
+    if name in names:
         return name
     close = difflib.get_close_matches(name, names, n=2, cutoff=0.6)
     hint = f"did you mean {' or '.join(close)}? " if close else ""

@@ -179,6 +179,10 @@ def test_out_into_a_read_only_directory_is_refused(no_devices):
     protocol.write_text(load_protocol("sphere10mm").text)
     protocol.parent.chmod(0o755)
     protocol.chmod(0o644)
+    # the same command once while every file is readable: what it imports lazily is then loaded (a
+    # checkout or .venv inside a 0700 folder is not readable by nobody)
+    missing = protocol.parent / "missing" / "run.h5"
+    runner.invoke(rig_app, ["run-protocol", str(protocol), "--sim", "--out", str(missing), *QUICK_SETTINGS])
     folder.chmod(0o555)  # root's: read-only to nobody, and to anyone without root
     as_root = os.geteuid() == 0
     if as_root:
