@@ -98,3 +98,39 @@ def test_simulated_camera_sees_contact():
         cam.close()
     assert np.abs(pressed - free).mean() > 1.0  # the contact shows in the frame
     assert f.t_s < clock.now()
+
+
+class SlowRenderSource:
+    """A source that renders on trigger (as the simulated camera on the discrete-event clock) whose
+    first frames take as long as the test says: each read waits at a gate the test opens."""
+
+    triggered = True
+    renders_on_trigger = True
+
+    def __init__(self):
+        self.gate = threading.Semaphore(0)
+        self.count = 0
+
+    def read(self):
+        self.gate.acquire()
+        self.count += 1
+        return True, np.full((8, 8, 3), self.count, np.uint8)
+
+    def release(self):
+        self.gate.release(100)
+
+
+def test_a_rendering_camera_waits_for_its_dropped_first_frames_and_never_hands_out_one_of_them():
+    source = SlowRenderSource()
+    cam = Camera(source, SystemClock(), name="simulated camera", discard_frames=3)
+    try:
+        cam.render_wait_s = 0.0  # the first frames still rendering: one line naming it, not a dropped frame
+        with pytest.raises(DeviceTimeout, match="3 frames dropped after opening took over 0 s"):
+            cam.trigger()
+        cam.render_wait_s = 60.0
+        source.gate.release(4)  # the three dropped frames, then the one the trigger renders
+        cam.trigger()
+        frame = cam.read(timeout_s=5.0)
+        assert frame.index == 0 and int(frame.image[0, 0, 0]) == 4  # the fourth rendered: the first kept
+    finally:
+        cam.close()

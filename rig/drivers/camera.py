@@ -153,6 +153,9 @@ def source_settings(source) -> dict:
     return {}
 
 
+RENDER_WAIT_S = 120.0  # a rendering source's dropped first frames: computed, so bounded by the machine, not a device
+
+
 class Camera:
     """Newest-frame camera over a capture source; the first ``discard_frames`` are dropped."""
 
@@ -173,6 +176,7 @@ class Camera:
         self.triggered = bool(getattr(source, "triggered", False))
         self._trigger = threading.Semaphore(discard_frames if self.triggered else 0)
         self._reading = threading.Lock()  # one source read at a time (the grabber, or a trigger that renders)
+        self.render_wait_s = RENDER_WAIT_S
         self._thread = threading.Thread(target=self._grab, name=f"grab-{name}", daemon=True)
         self._thread.start()
 
@@ -186,8 +190,16 @@ class Camera:
         if not self.triggered:
             return
         if getattr(self.source, "renders_on_trigger", False) and not self.ended and self.error is None:
-            # the frames dropped after opening come from the grabber first, so they stay the dropped ones
-            self.wait_arrived(self.discard_frames, timeout_s=5.0)
+            # the frames dropped after opening come from the grabber first, so they stay the dropped ones;
+            # they are rendered, so a loaded machine takes seconds over them: wait for them (bounded), since a
+            # frame taken before they are all in would itself be dropped and the reader left without one
+            if not self.wait_arrived(self.discard_frames, timeout_s=self.render_wait_s):
+                raise DeviceTimeout(
+                    self.name,
+                    "render the first frames",
+                    None,
+                    f"the {self.discard_frames} frames dropped after opening took over {self.render_wait_s:g} s",
+                )
             self._take_one()
             return
         self._trigger.release()
