@@ -170,6 +170,8 @@ def saved_results(candidates: list[Candidate], seeds: list[int], out: Path) -> l
 def summary(results: list[Result]) -> dict:
     """Per part and candidate: the spread over seeds of each metric and of the Fz sweep (exponent k
     within the training range, monotonic poses), beside the baselines (the same for every run)."""
+    from model.force_sweep import grew_past_maximum
+
     out: dict = {}
     parts = sorted({p for r in results for p in r.parts})
     for part in parts:
@@ -183,7 +185,7 @@ def summary(results: list[Result]) -> dict:
             entry["monotonic"] = [sum(s["monotonic"] for s in sweeps) for sweeps in fz]
             # past the training maximum: does the contact keep growing, and the change away from it (0–255)
             beyond = [[s for s in sweeps if s.get("beyond_values")] for sweeps in fz]
-            entry["beyond_grew"] = [sum(_grew(s) for s in b) for b in beyond]
+            entry["beyond_grew"] = [sum(grew_past_maximum(s) for s in b) for b in beyond]
             entry["outside_change_beyond"] = _spread(
                 [_mean([s.get("outside_change_beyond") for s in b]) for b in beyond]
             )
@@ -210,15 +212,6 @@ def summary(results: list[Result]) -> dict:
             "frames": first["model"][0]["images"] if first.get("model") else 0,
         }
     return out
-
-
-def _grew(s: dict) -> bool:
-    """The contact at the last value past the training maximum is larger than at the maximum."""
-    last_inside = s.get("last_inside_index", sum(s["inside_training_range"]) - 1)
-    if last_inside is None:
-        return False
-    a, b = s["beyond_area_mm2"][-1], s["model_area_mm2"][last_inside]
-    return a is not None and b is not None and a > b
 
 
 def _mean(values) -> float | None:

@@ -154,6 +154,14 @@ def summarise(sweep: PoseSweep, area_tolerance_mm2: float = 0.0) -> dict:
     return out
 
 
+def grew_past_maximum(summary: dict) -> bool:
+    """Whether the contact at the last value past the training maximum is larger than at the last value
+    in range the model was conditioned at (a ``summarise`` dict with ``beyond_values``)."""
+    last = summary.get("last_inside_index", sum(summary["inside_training_range"]) - 1)
+    a, b = summary["beyond_area_mm2"][-1], None if last is None else summary["model_area_mm2"][last]
+    return a is not None and b is not None and a > b
+
+
 def _nanmean(v: np.ndarray) -> float:
     return float(np.mean(v[np.isfinite(v)])) if np.isfinite(v).any() else float("nan")
 

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from model.force_sweep import ALONG, KINDS, MONOTONIC_RHO, UNITS
+from model.force_sweep import ALONG, KINDS, MONOTONIC_RHO, UNITS, grew_past_maximum
 from model.sweep_measures import FramesExponent
 
 EXPONENT_TOLERANCE = 0.30  # the model's k within ±30 % of the real frames' (issue 27's goal)
@@ -158,7 +158,7 @@ def verdict(summaries: list[dict], frames: FramesExponent | None, skipped: dict[
         line += f"; the real frames' exponent: {why_not or source}"
     beyond = [s for s in fz if s.get("beyond_values")]
     if beyond:
-        grew = sum(_grew(s) for s in beyond)
+        grew = sum(grew_past_maximum(s) for s in beyond)
         inside = _mean([s["outside_change_in_range"] for s in beyond])
         past = _mean([s["outside_change_beyond"] for s in beyond])
         line += (
@@ -166,13 +166,6 @@ def verdict(summaries: list[dict], frames: FramesExponent | None, skipped: dict[
             f"away from the contact is {_f(past, '{:.1f}')} (in range {_f(inside, '{:.1f}')}, 0–255)"
         )
     return line + "."
-
-
-def _grew(s: dict) -> bool:
-    """The contact at the last value past the training maximum is larger than at the last value in
-    range the model was conditioned at."""
-    last = s.get("last_inside_index", sum(s["inside_training_range"]) - 1)
-    return last is not None and s["beyond_area_mm2"][-1] > s["model_area_mm2"][last]
 
 
 def pose_notes(summaries: list[dict]) -> list[str]:

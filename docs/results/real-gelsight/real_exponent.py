@@ -72,13 +72,15 @@ def main(argv: list[str] | None = None) -> int:
     fz = np.array([float(r["Fz_N"]) for r in rows])
     images = [cv2.imread(str(a.folder / r["file"])) for r in rows]
     print(f"{len(rows)} real frames, Fz {fz.min():.2f}-{fz.max():.2f} N (derived: true area exponent 2/3)\n")
-    print("| size px | measure | k | 95 % interval | Spearman rho |")
-    print("|---|---|---|---|---|")
+    measured = {}  # size → each frame's measures at that size (both tables read them)
     for size in SIZES:
         ref = cv2.resize(square(reference), (size, size), interpolation=cv2.INTER_AREA)
         frames = [cv2.resize(square(f), (size, size), interpolation=cv2.INTER_AREA) for f in images]
         threshold = contact_threshold(frames, [ref] * len(frames), 1.0)[0]
-        values = [measures(f, ref, threshold) for f in frames]
+        measured[size] = [measures(f, ref, threshold) for f in frames]
+    print("| size px | measure | k | 95 % interval | Spearman rho |")
+    print("|---|---|---|---|---|")
+    for size, values in measured.items():
         for name in values[0]:
             e = frames_exponent(fz, [v[name] for v in values])
             print(f"| {size} | {name} | {e.k:+.2f} | [{e.low:+.2f}, {e.high:+.2f}] | {e.rho:+.2f} |")
@@ -86,11 +88,8 @@ def main(argv: list[str] | None = None) -> int:
     y = np.array([float(r["y_mm"]) for r in rows])
     print("\n| size px | sweep threshold, place held fixed by | k | 95 % interval |")
     print("|---|---|---|---|")
-    for size in SIZES:
-        ref = cv2.resize(square(reference), (size, size), interpolation=cv2.INTER_AREA)
-        frames = [cv2.resize(square(f), (size, size), interpolation=cv2.INTER_AREA) for f in images]
-        threshold = contact_threshold(frames, [ref] * len(frames), 1.0)[0]
-        area = np.array([measures(f, ref, threshold)["sweep threshold"] for f in frames])
+    for size, values in measured.items():
+        area = np.array([v["sweep threshold"] for v in values])
         for words, covariates in (
             ("distance² from the centre", [x**2 + y**2]),
             ("x, y, distance²", [x, y, x**2 + y**2]),
