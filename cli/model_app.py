@@ -94,6 +94,23 @@ def train(
             "Default: the config's, else pose."
         ),
     ] = None,
+    residual_gain: Annotated[
+        Optional[float],
+        typer.Option(
+            help="With target physics_residual: multiply the residual by this before it is noised (a real sensor's "
+            "residual is a few grey levels, which the noise drowns at gain 1; docs/model.md). Default: the config's, "
+            "else 1.",
+            min=0.0,
+        ),
+    ] = None,
+    force_augment: Annotated[
+        Optional[float],
+        typer.Option(
+            help="With physics depth force: also train on each frame at Fz x (1 +- S, 1 +- S/2), its render at that "
+            "load and its contact grown or shrunk as the render's (an assumption; docs/model.md). 0: off (default).",
+            min=0.0,
+        ),
+    ] = None,
     steps: Annotated[Optional[int], typer.Option(help="Optimisation steps in all (default 2000).", min=1)] = None,
     batch_size: Annotated[
         Optional[int], typer.Option(help="Images per step, over all GPUs (default 16).", min=1)
@@ -165,6 +182,8 @@ def train(
             ("prediction", prediction),
             ("target", target),
             ("physics_depth", physics_depth),
+            ("residual_gain", residual_gain),
+            ("force_augment", force_augment),
         )
         if v is not None
     }
@@ -198,7 +217,14 @@ def train(
         f"{model_cfg.conditioning}"
         + ("; physics at the depth Fz implies" if model_cfg.force_depth else "")
         + ("; target physics_residual" if model_cfg.residual else "")
-        + f"; {len(trainer.data)} training frames; device {trainer.device}"
+        + (f" x {model_cfg.residual_gain:g}" if model_cfg.residual_gain != 1 else "")
+        + f"; {len(trainer.data)} training "
+        + (
+            f"items (frames at 5 loads each, force_augment {model_cfg.force_augment:g})"
+            if model_cfg.force_augment
+            else "frames"
+        )
+        + f"; device {trainer.device}"
         + (f" x {trainer.acc.num_processes} processes" if trainer.acc.num_processes > 1 else "")
     )
     trainer.train()

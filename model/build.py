@@ -6,12 +6,14 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Callable
 
+import numpy as np
 import torch
 
 from dataset.torch_dataset import TactileDataset
 from model.callbacks import Checkpoints, Progress, ValidationSamples
 from model.config import ModelConfig
 from model.diffusion import Diffusion
+from model.force_augment import ForceAugmented, levels_cache
 from model.registry import build_network
 from model.trainer import Callback, TrainConfig, Trainer
 
@@ -40,9 +42,15 @@ def build(
         spec = split_spec(split_dir, profile, override=override_profile, log=log)
         cache = force_physics_cache if model_cfg.force_depth else physics_cache  # at Fz's depth, or the pose's z
         physics = cache(split_dir, "train", model_cfg.image_size, spec, log=log)
-    data = TactileDataset(split_dir, "train", size=model_cfg.image_size, physics=physics)
+    data: TactileDataset | ForceAugmented = TactileDataset(
+        split_dir, "train", size=model_cfg.image_size, physics=physics
+    )
+    if model_cfg.force_augment:  # each frame again at four other loads (model/force_augment.py)
+        span = model_cfg.force_augment
+        levels = levels_cache(split_dir, "train", model_cfg.image_size, span, spec, log=log)
+        data = ForceAugmented(data, np.load(levels, mmap_mode="r"), span)
     if len(data) < train_cfg.batch_size:
-        raise ValueError(f"{split_dir}: {len(data)} training frames, fewer than one batch of {train_cfg.batch_size}")
+        raise ValueError(f"{split_dir}: {len(data)} training items, fewer than one batch of {train_cfg.batch_size}")
     torch.manual_seed(train_cfg.seed)  # initial weights: the same in every process
     net = build_network(model_cfg)
     meta = {  # what inference needs to condition like training did

@@ -20,7 +20,7 @@ import torch
 import torch.nn.functional as F
 
 from model.config import ModelConfig
-from model.samplers import SAMPLERS, SPACING, Denoise, spaced_timesteps
+from model.samplers import CLIPPED, SAMPLERS, SPACING, Denoise, spaced_timesteps
 
 
 def alpha_bar_schedule(name: str, steps: int) -> torch.Tensor:
@@ -61,7 +61,7 @@ class Diffusion:
         """Mean squared error of the network's target for a batch of clean tactile images in [−1, 1]."""
         b, dev = tactile.shape[0], tactile.device
         if self.cfg.residual:  # the difference from the physics render (the last three condition channels)
-            tactile = to_residual(tactile, condition)
+            tactile = to_residual(tactile, condition, self.cfg.residual_gain)
         t = torch.randint(0, self.cfg.train_timesteps, (b,), device=dev, generator=generator)
         noise = torch.randn(tactile.shape, device=dev, generator=generator)
         a = self._alpha_bar(t).to(tactile.dtype)
@@ -137,16 +137,18 @@ class Diffusion:
         timesteps = spaced_timesteps(self.cfg.train_timesteps, steps, SPACING[sampler])
         x = torch.randn((condition.shape[0], 3, *condition.shape[2:]), device=condition.device, generator=generator)
         denoise = self.denoiser(net, condition, wrench, guidance=guidance)
-        out = SAMPLERS[sampler](denoise, x, timesteps, self.alpha_bar, generator=generator).clamp(-1.0, 1.0)
-        return from_residual(out, condition) if self.cfg.residual else out
+        span = self.cfg.residual_gain if self.cfg.residual else 1.0  # the target's range: ±gain for a residual
+        kw = {"clip": span} if sampler in CLIPPED else {}
+        out = SAMPLERS[sampler](denoise, x, timesteps, self.alpha_bar, generator=generator, **kw).clamp(-span, span)
+        return from_residual(out, condition, span) if self.cfg.residual else out
 
 
-def to_residual(tactile: torch.Tensor, condition: torch.Tensor) -> torch.Tensor:
+def to_residual(tactile: torch.Tensor, condition: torch.Tensor, gain: float = 1.0) -> torch.Tensor:
     """Frames in [−1, 1] → their difference from the physics render (the condition's last three
-    channels), halved into [−1, 1]."""
-    return (tactile - condition[:, -3:]) / 2
+    channels), halved into [−1, 1], times ``gain`` (ModelConfig.residual_gain: into [−gain, gain])."""
+    return (tactile - condition[:, -3:]) * (gain / 2)
 
 
-def from_residual(residual: torch.Tensor, condition: torch.Tensor) -> torch.Tensor:
+def from_residual(residual: torch.Tensor, condition: torch.Tensor, gain: float = 1.0) -> torch.Tensor:
     """``to_residual``'s inverse, clamped to the image range."""
-    return (condition[:, -3:] + 2 * residual).clamp(-1.0, 1.0)
+    return (condition[:, -3:] + residual * (2 / gain)).clamp(-1.0, 1.0)

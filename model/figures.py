@@ -84,14 +84,37 @@ def samples_figure(columns: dict[str, list[np.ndarray]], path: Path, row_labels:
     cv2.imwrite(str(path), grid)
 
 
+def wrapped(text: str, width: int) -> list[str]:
+    """``text`` in lines that fit a strip ``width`` px wide (``_header``'s width // 8 characters), broken
+    after " | " or a space; nothing is cut off."""
+    room = max(4, width // 8)
+    lines: list[str] = []
+    for part in text.split(" | "):
+        line = ""
+        for word in part.split(" "):
+            candidate = f"{line} {word}" if line else word
+            if len(candidate) > room and line:
+                lines.append(line.strip())
+                candidate = word
+            line = candidate
+        lines.append(line.strip())
+    out: list[str] = []  # join the parts again where they fit on one line
+    for line in lines:
+        if out and len(out[-1]) + 3 + len(line) <= room:
+            out[-1] = f"{out[-1]} | {line}"
+        else:
+            out.append(line)
+    return out
+
+
 def _label_rows(grid: np.ndarray, labels: list[str], tile_h: int) -> np.ndarray:
-    """Each example row followed by a strip with its label (the header is 22 px, rows are
-    tile_h + 4 px apart)."""
+    """Each example row followed by strips with its label, wrapped to the grid's width (the header is
+    22 px, rows are tile_h + 4 px apart)."""
     parts, top = [grid[:22]], 22
     for i, text in enumerate(labels):
         bottom = min(grid.shape[0], top + tile_h + (4 if i < len(labels) - 1 else 0))
         parts.append(grid[top:bottom])
-        parts.append(_header(text, grid.shape[1]))
+        parts.extend(_header(line, grid.shape[1]) for line in wrapped(text, grid.shape[1]))
         top = bottom
     parts.append(grid[top:])
     return np.concatenate(parts, axis=0)

@@ -269,15 +269,18 @@ def training_range(percentiles: dict, component: str) -> tuple[float, float]:
 
 
 def pose_range(split_range: tuple[float, float], recorded: np.ndarray, component: str, run: str) -> tuple:
-    """(low, high, note): the split's training range of ``component`` within the 2nd–98th percentile
-    of what the pose's run recorded (``recorded``: that component over its frames); the note says
-    when that narrows it (and, when nothing is left, why the pose is not swept)."""
+    """(low, high, note): the split's training range of ``component`` within what the pose's run recorded
+    (``recorded``: that component over its frames, smallest to largest); the note says when that narrows
+    it (and, when nothing is left, why the pose is not swept). The run's extremes, not its percentiles:
+    the split's range is already its training part's 2nd–98th percentile, and a run holding the split's
+    largest loads must count as reaching it (24 presses: the run's 98th percentile, 1.75 N, fell below
+    the 19 training frames', 1.76 N, and the sweep went nowhere past the maximum)."""
     low, high = split_range
     values = np.asarray(recorded, dtype=np.float64)
     values = values[np.isfinite(values)]
     if not len(values):
         return low, low, f"{run} recorded no finite {component}"
-    run_low, run_high = (float(v) for v in np.percentile(values, [2, 98]))
+    run_low, run_high = float(values.min()), float(values.max())
     lo, hi = max(low, run_low), min(high, run_high)
     unit = UNITS[component]
     if lo <= low and hi >= high:

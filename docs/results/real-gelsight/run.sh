@@ -49,3 +49,15 @@ echo "report: $OUT/compare/compare.md"
     --candidate physics,physics_depth=force,target=physics_residual \
     --seeds "$SEEDS" --steps "$STEPS" --batch-size 15 --threads 1 --settings ddim:10
 echo "held-out report: $OUT/held-out/compare/compare.md"
+# 6. the residual with gain 8 (residual_gain: the residual is multiplied by 8 before it is noised), with and
+#    without force augmentation (force_augment 0.25: each frame also at Fz x 0.75 ... 1.25, its contact grown
+#    as the render's), on both splits: gain/README.md
+GAIN="--candidate physics,physics_depth=force,target=physics_residual,residual_gain=8
+      --candidate physics,physics_depth=force,target=physics_residual,residual_gain=8,force_augment=0.25"
+# shellcheck disable=SC2086
+"$BIN/compare" --data "$OUT/split" --out "$OUT/gain" $GAIN \
+    --seeds "$SEEDS" --steps "$STEPS" --threads 1 --settings ddim:10
+# shellcheck disable=SC2086
+"$BIN/compare" --data "$OUT/held-out/split" --out "$OUT/held-out/gain" $GAIN \
+    --seeds "$SEEDS" --steps "$STEPS" --batch-size 15 --threads 1 --settings ddim:10
+echo "gain reports: $OUT/gain/compare.md $OUT/held-out/gain/compare.md"

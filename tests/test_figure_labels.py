@@ -1,0 +1,29 @@
+"""Figure labels are wrapped to the figure's width, never cut off (model/figures.py)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from model.figures import samples_figure, wrapped
+
+LABEL = "Fz 1.41 N  Fx +0.00  Fy +0.00  Mz +0.0 Nmm | x -3.90  y +3.17  z -1.74 mm  theta +0.0 deg"
+
+
+def test_a_label_wider_than_the_figure_is_wrapped_with_every_word_kept():
+    lines = wrapped(LABEL, 652)  # four 160 px columns: the samples figure of an evaluation
+    assert len(lines) == 2 and all(len(line) <= 652 // 8 for line in lines)
+    assert " ".join(" ".join(lines).replace("|", " ").split()) == " ".join(LABEL.replace("|", " ").split())
+    assert lines[-1].endswith("theta +0.0 deg")
+    assert wrapped("Fz 1.41 N", 652) == ["Fz 1.41 N"]
+    narrow = wrapped(LABEL, 40)  # 5 characters a line: a word a line, none cut
+    assert all(len(line) <= 5 or " " not in line for line in narrow) and "theta" in narrow
+
+
+def test_the_samples_figure_gives_a_wrapped_label_its_own_strips(tmp_path):
+    import cv2
+
+    tiles = {name: [np.full((32, 32, 3), 128, np.uint8)] * 2 for name in ("object", "real", "render", "model")}
+    samples_figure(tiles, tmp_path / "short.png", ["Fz 1 N", "Fz 2 N"])
+    samples_figure(tiles, tmp_path / "long.png", [LABEL, LABEL])
+    short, long = (cv2.imread(str(tmp_path / f"{n}.png")) for n in ("short", "long"))
+    assert long.shape[0] == short.shape[0] + 2 * 22 and long.shape[1] == short.shape[1]
