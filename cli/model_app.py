@@ -165,6 +165,7 @@ def train(
     from model.config import PRESET_TRAINING
     from model.config import preset as make_preset
     from model.config_file import load_model_file
+    from model.force_augment import factors
     from model.threads import set_threads
     from model.trainer import TrainConfig
     from sensor_sim.profile import load_profile
@@ -220,7 +221,8 @@ def train(
         + (f" x {model_cfg.residual_gain:g}" if model_cfg.residual_gain != 1 else "")
         + f"; {len(trainer.data)} training "
         + (
-            f"items (frames at 5 loads each, force_augment {model_cfg.force_augment:g})"
+            f"items (frames at {1 + len(factors(model_cfg.force_augment))} loads each, "
+            f"force_augment {model_cfg.force_augment:g})"
             if model_cfg.force_augment
             else "frames"
         )

@@ -35,7 +35,7 @@ from acquisition import schema as S
 from acquisition.run_reader import RunReader
 from dataset.split import load_split
 from dataset.torch_dataset import image_to_tensor
-from model.force_render import force_pose
+from model.force_render import force_physics_cache, render_at_force
 from model.physics_condition import PhysicsSpec, cache_fresh, cache_key, cache_path, resize, split_spec, write_cache
 
 
@@ -71,6 +71,7 @@ def levels_cache(
     manifest, parts = load_split(split_dir)
     rows = parts[part]
     spec = PhysicsSpec(**key["spec"])
+    own_renders = np.load(force_physics_cache(split_dir, part, size, spec, log=log))  # at each frame's own Fz
     scale = key["force_factors"]
     images = np.zeros((len(rows), len(scale), 2, size, size, 3), np.uint8)
     runs: dict = {}
@@ -94,11 +95,8 @@ def levels_cache(
             poses, wrenches, reference, renderer = runs[run]
             tactile = resize(readers[run].frame(frame), size)
             pose, wrench = poses[frame], np.asarray(wrenches[frame], dtype=float)
-            fz = float(wrench[2])
-            bare, own = (
-                render_at_force(renderer, pose, wrench, 0.0, size, notes),
-                render_at_force(renderer, pose, wrench, fz, size, notes),
-            )
+            fz, own = float(wrench[2]), own_renders[k]
+            bare = render_at_force(renderer, pose, wrench, 0.0, size, notes)
             for j, factor in enumerate(scale):
                 images[k, j, 0] = render_at_force(renderer, pose, wrench, fz * factor, size, notes)
                 images[k, j, 1] = grown(tactile, reference, own, images[k, j, 0], bare)
@@ -111,16 +109,6 @@ def levels_cache(
         log(f"  force augmentation: {note}")
     write_cache(path, images, key)
     return path
-
-
-def render_at_force(renderer, pose, wrench: np.ndarray, fz: float, size: int, notes: set[str]) -> np.ndarray:
-    """The render at ``pose``'s x, y, θ and the depth ``fz`` implies, with ``wrench``'s Fz set to it, at ``size``."""
-    moved = wrench.copy()
-    moved[2] = fz
-    at, note = force_pose(renderer, pose, fz)
-    if note and "beyond" in note:
-        notes.add(note)
-    return resize(renderer.render(at, moved), size)
 
 
 def contact(render: np.ndarray, bare: np.ndarray, peak: float) -> tuple[float, float, float]:

@@ -42,6 +42,17 @@ def force_pose(renderer, pose, fz: float) -> tuple[np.ndarray, str]:
         return np.array([x, y, -deepest, theta]), f"{exc}; rendered at {deepest:g} mm"
 
 
+def render_at_force(renderer, pose, wrench: np.ndarray, fz: float, size: int, notes: set[str]) -> np.ndarray:
+    """The render at ``pose``'s x, y, θ and the depth ``fz`` implies, under ``wrench`` with its Fz set to
+    ``fz`` (its own dtype kept), resized to ``size``; a force past what the gel reaches is added to ``notes``."""
+    moved = np.array(wrench, copy=True)
+    moved[2] = fz
+    at, note = force_pose(renderer, pose, fz)
+    if note and "beyond" in note:
+        notes.add(note)
+    return resize(renderer.render(at, moved), size)
+
+
 def cache_file(split_dir: str | Path, part: str, size: int) -> Path:
     path = cache_path(split_dir, part, size)
     return path.with_name(f"{path.stem}-fz.npy")
@@ -80,10 +91,7 @@ def force_physics_cache(
                 recorded[run] = (f.rows[S.POSE_MEASURED], f.rows[S.WRENCH])
                 renderers[run] = spec.renderer(f.text(S.ATTR_OBJECT), where=run_path)
         pose, wrench = recorded[run][0][frame], recorded[run][1][frame]
-        at, note = force_pose(renderers[run], pose, float(wrench[2]))
-        if note and "beyond" in note:
-            notes.add(note)
-        images[k] = resize(renderers[run].render(at, wrench), size)
+        images[k] = render_at_force(renderers[run], pose, wrench, float(wrench[2]), size, notes)
         if (k + 1) % step == 0 or k + 1 == len(rows):
             log(f"  physics render: {k + 1}/{len(rows)} frames")
     for note in sorted(notes):

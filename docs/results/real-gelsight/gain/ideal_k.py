@@ -23,7 +23,8 @@ import numpy as np
 
 from acquisition import schema as S
 from acquisition.run_reader import RunReader
-from model.force_augment import grown, render_at_force
+from model.force_augment import grown
+from model.force_render import render_at_force
 from model.physics_condition import resize, split_spec
 from model.sweep_measures import measure_contact, power_exponent
 
