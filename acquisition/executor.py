@@ -13,6 +13,7 @@ closes it.
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import math
 from dataclasses import dataclass, field
@@ -155,6 +156,42 @@ def _preflight_speeds(plan: Plan, origin: dict[str, float], depth, envelope, pol
                 )
 
 
+def fitted_interval(config, plan: Plan, origin: dict[str, float], envelope, depth, asked: float) -> float:
+    """The check period: the one asked for, shortened where a captured step's speed needs more
+    frequent checks to stay inside the speed envelope (never below the rig's poll_s; preflight
+    refuses a step that even that cannot make safe)."""
+    interval = asked
+    surface = depth.surface_z if depth is not None else None
+    for step in plan.captured_steps:
+        pressed = surface is None or origin["z"] + min(step.start[2], step.end[2]) < surface
+        for axis, speed in step.speeds.items():
+            if axis not in config.axes or (axis == "z" and step.end[2] >= step.start[2]):
+                continue
+            if axis != "z" and not pressed:
+                continue
+            longest = envelope.longest_poll_s(axis, "gel" if axis == "z" else "pressed", speed)
+            interval = min(interval, max(config.safety.poll_s, longest))
+    # A whole fraction of the period asked for: the checks stay on the capture grid, and the
+    # measured timing's jitter does not move them (a simulated run is the same run every time).
+    return asked / math.ceil(asked / interval - 1e-9) if interval < asked else asked
+
+
+def check_against_rig(rig, plan: Plan, origin: dict[str, float], asked_poll_s: float | None = None) -> float:
+    """Everything the run checks before it moves, on an open rig (its measured speed envelope, its
+    remembered surface or the origin, the protocol's [limits]); returns the check period the run
+    would use. Raises ProtocolRefused. Moves nothing (``rig run-protocol --dry-run`` calls it)."""
+    hint = (origin["z"], "the protocol's origin (--origin)")
+    depth = rig.depth_guard(hint)
+    limits = protocol_limits(rig.config, plan.protocol)
+    with contextlib.ExitStack() as stack:
+        if limits is not None:
+            stack.enter_context(rig.narrowed_limits(limits))
+        envelope = rig.envelope()
+        poll_s = fitted_interval(rig.config, plan, origin, envelope, depth, asked_poll_s or rig.config.safety.poll_s)
+        preflight(rig.config, plan, origin, depth=depth, envelope=envelope, poll_s=poll_s)
+    return poll_s
+
+
 def disk_bytes(plan: Plan, frame_shape: tuple[int, int, int]) -> int:
     per_frame = int(np.prod(frame_shape)) + 8 * (6 + 4 + 4 + 3) + 8 + 4 + 2
     return plan.frame_count * per_frame
@@ -275,15 +312,7 @@ class Acquisition:
         path = Path(path)
         plan, proto = self.plan, self.protocol
         hint = (self.origin["z"], "the protocol's origin (--origin)")
-        self.monitor_interval_s = self._fitted_interval(self.rig.envelope(), self.rig.depth_guard(hint))
-        preflight(
-            self.rig.config,
-            plan,
-            self.origin,
-            depth=self.rig.depth_guard(hint),
-            envelope=self.rig.envelope(),
-            poll_s=self.monitor_interval_s,
-        )
+        self.monitor_interval_s = check_against_rig(self.rig, plan, self.origin, self.monitor_interval_s)
         writer: RunWriter | None = None
         lock = None if resume else RunWriter.claim(path)  # a second writer is refused before anything moves
         k0 = 0
@@ -383,25 +412,6 @@ class Acquisition:
                 finally:
                     writer.close()
         return result
-
-    def _fitted_interval(self, envelope, depth) -> float:
-        """The check period: the one asked for, shortened where a captured step's speed needs
-        more frequent checks to stay inside the speed envelope (never below the rig's poll_s;
-        preflight refuses a step that even that cannot make safe)."""
-        asked = interval = self.monitor_interval_s
-        surface = depth.surface_z if depth is not None else None
-        for step in self.plan.captured_steps:
-            pressed = surface is None or self.origin["z"] + min(step.start[2], step.end[2]) < surface
-            for axis, speed in step.speeds.items():
-                if axis not in self.rig.axes or (axis == "z" and step.end[2] >= step.start[2]):
-                    continue
-                if axis != "z" and not pressed:
-                    continue
-                longest = envelope.longest_poll_s(axis, "gel" if axis == "z" else "pressed", speed)
-                interval = min(interval, max(self.rig.config.safety.poll_s, longest))
-        # A whole fraction of the period asked for: the checks stay on the capture grid, and the
-        # measured timing's jitter does not move them (a simulated run is the same run every time).
-        return asked / math.ceil(asked / interval - 1e-9) if interval < asked else asked
 
     def _record_stop(self, result: RunResult, report) -> None:
         """How the motion session ended, in the words the run file keeps. Errors that are

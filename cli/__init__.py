@@ -1,5 +1,13 @@
 """The application layer: the command line (``rig``, ``dataset``, ``train``/``generate``/``evaluate``).
 
 Commands parse arguments and call library functions; heavy imports (torch, diffusers)
-happen inside the model commands so that ``rig --help`` stays fast.
+happen inside the model commands so that ``rig --help`` stays fast. The first instruction of
+a moving rig command holds SIGINT, SIGTERM and SIGHUP until its motion session can act on them
+(rig/early_signals.py): a signal while Python imports or the rig opens still lifts z.
 """
+
+import sys as _sys
+
+from rig.early_signals import hold_if_moving as _hold_if_moving
+
+_hold_if_moving(_sys.argv)

@@ -169,7 +169,6 @@ def run_protocol(
 ) -> None:
     """``profile``: the simulated sensor's profile TOML (--sim only; default the shipped one);
     ``origin`` None: the one remembered for the rig (rig find-contact --set-origin), else 0,0,0,0."""
-    from acquisition.executor import preflight
     from cli.session import check_profile_option, load_sim_profile
     from protocols.plan import AXES, Plan
     from protocols.spec import load_protocol
@@ -199,38 +198,56 @@ def run_protocol(
     # printed once the rig (or the dry run's check) is past every refusal: an error stays one line
     origin_line = f"origin: x,y,z,theta = {','.join(f'{v:g}' for v in origin)} ({said})"
     if dry_run:
-        if sim:
-            from cli.simulated import with_protocol_limits
-            from rig.sim.rig_sim import SimulatedRig
-
-            with SimulatedRig(profile=sensor_profile) as simulated:
-                rig_config = with_protocol_limits(simulated.config(), protocol)
-        else:
-            from cli.session import resolve_config_path
-            from rig.config import load_config
-
-            rig_config = load_config(resolve_config_path(config))
-        preflight(rig_config, plan, origin_map)
+        checked, config_path = _dry_run(protocol, plan, origin_map, sim, config, sensor_profile)
         console.print(origin_line, highlight=False)
         console.print(
-            f"dry run: {protocol.name} fits {rig_config.path}'s soft limits, axis speeds and depth guard "
-            "(from the origin above); nothing moved. The speed envelope is checked when the run starts: it needs "
-            "the gauge's measured period (docs/safety.md)"
+            f"dry run: {protocol.name} fits {config_path}'s soft limits, axis speeds, depth guard and "
+            f"{checked} (from the origin above); nothing moved"
         )
         console.print(
             f"duration {fmt_duration(plan.total_duration_s)}, {plan.frame_count} frames, {disk_estimate(plan, sim)[2]}"
         )
         return
-    from rig.interruption import SignalsAsExceptions
+    # SIGINT, SIGTERM and SIGHUP are held while the rig opens, then become MotionInterrupted for
+    # the whole command (rig/signal_safety.py): while the stages move the run's motion session
+    # stops and lifts them and the file records which signal; before or after, the axes still
+    # stop, z lifts when pressed and the rig closes (a gauge left streaming breaks later commands).
+    if sim:
+        _run_sim(protocol, plan, path, resume is not None, origin_map, sensor_profile, origin_line)
+    else:
+        _run_hw(protocol, plan, path, resume is not None, origin_map, config, origin_line)
 
-    # SIGINT, SIGTERM and SIGHUP become MotionInterrupted for the whole command: while the
-    # stages move the run's motion session stops and lifts them and the file records which
-    # signal; before or after, the rig still closes (a gauge left streaming breaks later commands).
-    with SignalsAsExceptions():
-        if sim:
-            _run_sim(protocol, plan, path, resume is not None, origin_map, sensor_profile, origin_line)
-        else:
-            _run_hw(protocol, plan, path, resume is not None, origin_map, config, origin_line)
+
+def _dry_run(protocol, plan, origin, sim: bool, config: Path | None, profile) -> tuple[str, str]:
+    """Check the run as it would start, on the rig it names, moving nothing: (what of the speed
+    envelope was checked, the config's path). The rig's devices are opened to measure the
+    envelope as the run does (its gauge's period, its axes' round trips); a rig that cannot be
+    opened (held by another process, say) is checked against its config alone, and said so.
+    Raises ProtocolRefused as the run would."""
+    from acquisition.executor import ProtocolRefused, check_against_rig, preflight
+
+    if sim:
+        from cli.simulated import monitor_interval_s, simulated_rig_for
+
+        with simulated_rig_for(protocol, profile=profile) as (rig, _, _):
+            poll_s = check_against_rig(rig, plan, origin, monitor_interval_s(protocol))
+            return f"the simulated rig's speed envelope (checked every {poll_s * 1000:.0f} ms)", "the simulated rig"
+    from cli.session import resolve_config_path
+    from rig.config import load_config
+    from rig.errors import RigError
+    from rig.rig import Rig
+
+    cfg = load_config(resolve_config_path(config))
+    preflight(cfg, plan, origin)
+    try:
+        with Rig.open(cfg, camera=False) as rig:
+            rig.state.mounted = protocol.object  # as the run would mount it, in memory: a dry run changes nothing
+            poll_s = check_against_rig(rig, plan, origin)
+    except ProtocolRefused:
+        raise
+    except RigError as exc:
+        return f"not its speed envelope: the rig could not be opened to measure it ({exc})", str(cfg.path)
+    return f"the speed envelope measured on the rig now (checked every {poll_s * 1000:.0f} ms)", str(cfg.path)
 
 
 ZERO_ORIGIN = (0.0, 0.0, 0.0, 0.0)
@@ -256,8 +273,10 @@ def resolve_origin(origin, config: Path | None, sim: bool) -> tuple[tuple[float,
 
 def _run_sim(protocol, plan, path, resume, origin, profile=None, origin_line: str = "") -> None:
     from cli.simulated import monitor_interval_s, simulated_rig_for
+    from rig.signal_safety import opened_safely
 
-    with simulated_rig_for(protocol, profile=profile) as (rig, simulated, header):
+    with opened_safely(lambda: simulated_rig_for(protocol, profile=profile), lambda opened: opened[0]) as opened:
+        rig, simulated, header = opened
         _execute(
             rig,
             plan,
@@ -282,7 +301,9 @@ def _run_hw(protocol, plan, path, resume, origin, config, origin_line: str = "")
         "rig_config": Path(cfg_path).read_text(),
         "mm_per_px": cfg.camera.mm_per_px if cfg.camera and cfg.camera.mm_per_px is not None else float("nan"),
     }
-    with Rig.open(cfg, camera=True) as rig:
+    from rig.signal_safety import opened_safely
+
+    with opened_safely(lambda: Rig.open(cfg, camera=True, indenter=protocol.object)) as rig:
         _execute(rig, plan, path, resume, origin, header, monitor_interval_s=None, origin_line=origin_line)
 
 

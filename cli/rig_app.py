@@ -43,6 +43,32 @@ ConfigOpt = Annotated[
     typer.Option("--config", "-c", help="Rig config TOML (default: $RIG_CONFIG, then ./rig.toml).", dir_okay=False),
 ]
 SimOpt = Annotated[bool, typer.Option("--sim", help="Use the built-in simulated rig instead of hardware.")]
+
+
+def _known_object(name: str | None) -> str | None:
+    """--object: a library object's name or an object file that exists; BadParameter otherwise."""
+    if name is None:
+        return None
+    from objects.indenters import INDENTERS
+    from objects.object_file import is_object_file
+
+    if name in INDENTERS or (is_object_file(name) and Path(name).is_file()):
+        return name
+    raise typer.BadParameter(
+        f"{name!r} is neither a library object ({', '.join(INDENTERS)}) nor an object file (.toml) that exists"
+    )
+
+
+ObjectOpt = Annotated[
+    Optional[str],
+    typer.Option(
+        "--object",
+        callback=_known_object,
+        help="The indenter now mounted (a library object or object file name): the rig remembers a gel surface per "
+        "indenter, so a different one descends at the in-contact speed until it sees the gel (default: the one "
+        "named last).",
+    ),
+]
 ProfileOpt = Annotated[
     Optional[Path],
     typer.Option(
@@ -173,19 +199,22 @@ def jog(
             "at the slow speed the window behind the gel allows (docs/safety.md).",
         ),
     ] = False,
+    indenter: ObjectOpt = None,
     config: ConfigOpt = None,
     sim: SimOpt = False,
     profile: ProfileOpt = None,
 ):
     """Jog one axis: by --step, to --to, or interactively (keys + and - or arrows; q quits).
     Speeds above the speed envelope are clamped, with a line saying why (docs/safety.md)."""
-    from cli.session import open_rig
+    from cli.session import has_z, open_rig
 
     if step is not None and to is not None:
         _fail("give --step or --to, not both")
     if step is None and to is None and not pendant and not stdin_is_terminal():
         _fail("interactive jogging needs a terminal (stdin is not one): run it in a terminal, or give --step or --to")
-    with open_rig(config, sim, profile=profile, axes=(axis.value,)) as rig:
+    # z opens too: a signal or an error while x, y or theta presses sideways still lifts it
+    axes = (axis.value, "z") if axis.value != "z" and has_z(config, sim) else (axis.value,)
+    with open_rig(config, sim, profile=profile, axes=axes, indenter=indenter) as rig:
         unit = rig.config.axes[axis.value].unit
         if step is not None or to is not None:
             with rig.motion("jog", on_start=_say, on_note=_note, allow_deep=allow_deep) as m:
@@ -302,17 +331,18 @@ def find_contact_cmd(
             "when --origin is not given.",
         ),
     ] = False,
+    indenter: ObjectOpt = None,
     config: ConfigOpt = None,
     sim: SimOpt = False,
     profile: ProfileOpt = None,
 ):
     """Lower z under the force limits until the indenter touches the gel; print the contact point as a
     complete --origin x,y,z,theta (x, y and theta where they stand: centre the indenter first, rig check-axes
-    says how)."""
+    says how). The surface is remembered for the indenter mounted (--object)."""
     from cli.session import open_rig
     from rig.contact_search import find_contact
 
-    with open_rig(config, sim, profile=profile) as rig:
+    with open_rig(config, sim, profile=profile, indenter=indenter) as rig:
         found = find_contact(rig, threshold_N=threshold, speed_mm_s=speed, max_travel_mm=max_travel, on_start=_say)
         values, missing = found.origin()
         forgotten = rig.state.forget_origin()
@@ -446,6 +476,13 @@ def sim_serve(
         Transport, typer.Option(help="pty (virtual serial ports) or tcp (socket:// on 127.0.0.1).")
     ] = Transport.pty,
     gauge: Annotated[GaugeKind, typer.Option(help="Which force gauge to simulate.")] = GaugeKind("ft300"),
+    gauge_rate_hz: Annotated[
+        float,
+        typer.Option(help="The simulated gauge's sample rate, Hz.", callback=number(positive=True, high=2000.0)),
+    ] = 100.0,
+    indenter: Annotated[
+        str, typer.Option("--object", help="The indenter the simulated rig carries.", callback=_known_object)
+    ] = "sphere10mm",
     profile: ProfileOpt = None,
 ):
     """Start the simulated rig, print its port URLs, write a config; runs until Ctrl-C.
@@ -465,7 +502,13 @@ def sim_serve(
     sensor_profile = load_sim_profile(profile)
     with (
         claim({os.path.realpath(out): ["rig sim serve --out"]}, subject="config"),
-        SimulatedRig(transport=transport.value, gauge=gauge.value, profile=sensor_profile) as simulated,
+        SimulatedRig(
+            transport=transport.value,
+            gauge=gauge.value,
+            profile=sensor_profile,
+            gauge_rate_hz=gauge_rate_hz,
+            indenter=indenter,
+        ) as simulated,
     ):
         camera = simulated.serve_camera()
         written = "# Written by `rig sim serve`; valid while that process runs (removed when it stops).\n" + (
@@ -478,6 +521,7 @@ def sim_serve(
                     typer.echo(f"{name:7s} {server.url}")
                 typer.echo(f"{'camera':7s} {camera.url}")
                 typer.echo(f"{'sensor':7s} {sensor_profile.name} ({sensor_profile.path})")
+                typer.echo(f"{'object':7s} {indenter}; gauge at {gauge_rate_hz:g} Hz")
                 typer.echo(f"config  {out}   (try: rig status --config {out})")
                 typer.echo("serving; Ctrl-C stops")
                 threading.Event().wait()

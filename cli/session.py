@@ -39,39 +39,54 @@ def open_rig(
     camera: bool | None = False,
     profile: Path | None = None,
     discrete: bool = False,
+    indenter: str | None = None,
 ):
     """Yield an open ``Rig`` with only the devices asked for; closes everything on exit.
     ``camera=None``: the camera when the config has a [camera] section. ``profile``: the
     simulated sensor's profile TOML (--sim only; default the shipped GelSight Mini).
     ``discrete``: with --sim, the simulated rig runs on discrete-event time (as `rig
     run-protocol --sim`): a wait advances simulated time at once, the camera renders when asked.
+    ``indenter``: the object now mounted (``--object``; None: the one named last).
 
-    SIGTERM and SIGHUP (and SIGINT) raise MotionInterrupted for the whole command, not
-    only while something moves, so that a signal while the rig opens or closes still
-    runs the closing: a gauge left streaming would break every later command.
+    Signals (SIGINT, SIGTERM, SIGHUP) are held while the rig opens, then raise MotionInterrupted
+    for the whole command, not only while something moves; one that no motion session met still
+    stops the axes and lifts z when it may be pressed, and the closing runs to its end
+    (rig/signal_safety.py): a gauge left streaming would break every later command.
     """
     from rig.config import load_config
-    from rig.interruption import SignalsAsExceptions
     from rig.rig import Rig
+    from rig.signal_safety import opened_safely
 
     check_profile_option(profile, sim)
-    with SignalsAsExceptions():
-        if sim:
-            from rig.clock import ManualClock
-            from rig.sim.rig_sim import SimulatedRig
+    if sim:
+        from rig.clock import ManualClock
+        from rig.sim.rig_sim import SimulatedRig
 
+        @contextlib.contextmanager
+        def opener():
             clock = ManualClock() if discrete else None
             with SimulatedRig(clock, profile=load_sim_profile(profile)) as simulated:
                 simulated.triggered_camera = discrete
                 cfg = simulated.config()
                 with Rig.open(
-                    cfg, simulated.clock, axes=axes, gauge=gauge, camera=_camera(cfg, camera), sim=simulated
+                    cfg,
+                    simulated.clock,
+                    axes=axes,
+                    gauge=gauge,
+                    camera=_camera(cfg, camera),
+                    sim=simulated,
+                    indenter=indenter,
                 ) as rig:
                     yield rig
-        else:
-            cfg = load_config(resolve_config_path(config))
-            with Rig.open(cfg, axes=axes, gauge=gauge, camera=_camera(cfg, camera)) as rig:
-                yield rig
+
+        with opened_safely(opener) as rig:
+            yield rig
+    else:
+        cfg = load_config(resolve_config_path(config))
+        with opened_safely(
+            lambda: Rig.open(cfg, axes=axes, gauge=gauge, camera=_camera(cfg, camera), indenter=indenter)
+        ) as rig:
+            yield rig
 
 
 def has_z(config: Path | None, sim: bool) -> bool:

@@ -58,7 +58,7 @@ def simulated_rig_for(
             # (acquisition/schema.py; docs/benchmarks.md, "Run-file storage")
             "frame_codec": FAST_CODEC,
         }
-        with Rig.open(cfg, clock, camera=True, sim=simulated) as rig:
+        with Rig.open(cfg, clock, camera=True, sim=simulated, indenter=protocol.object) as rig:
             yield rig, simulated, header
 
 

@@ -91,15 +91,23 @@ def print_safety(rig, console: Console) -> None:
         f"overshoot at most {safety.overshoot_margin:.0%} of a limit)"
     )
     guard = rig.depth_guard()
+    state = rig.state
+    indenter = state.mounted or "the unnamed indenter (no --object given yet)"
     if guard is None:
+        why = state.why_unknown(state.surfaces.get(state.mounted))
         console.print(
-            "gel surface: not known yet (rig find-contact, or the first contact a move sees); "
+            f"gel surface of {indenter}: not known ({why}; rig find-contact, or the first contact a move sees); "
             "until then every z descent runs at the in-contact speed"
         )
     else:
         console.print(
-            f"gel surface: z = {guard.surface_z:.4f} mm ({guard.how}); depth floor z = {guard.floor_z:.4f} mm"
+            f"gel surface of {indenter}: z = {guard.surface_z:.4f} mm ({guard.how}); depth floor "
+            f"z = {guard.floor_z:.4f} mm; full speed only above z = "
+            f"{guard.surface_z + rig.config.safety.surface_uncertainty_mm + 0.5:.4f} mm"
         )
+    others = sorted(name or "unnamed" for name in state.surfaces if name != state.mounted)
+    if others:
+        console.print(f"surfaces also remembered for: {', '.join(others)} (used when that indenter is named)")
     tare = rig.state.tare
     if tare is None:
         console.print("tare: none remembered (rig zero)")

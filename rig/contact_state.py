@@ -52,9 +52,11 @@ class ContactTracker:
         guard = rig.depth_guard(surface_hint)
         tare = rig.state.tare
         entry_fz = self.averaged_raw_fz(entry)
+        self._entry_raw = entry.as_array() + np.asarray(getattr(rig.gauge, "bias", np.zeros(6)))
         if guard is not None and z_mm is not None and z_mm > guard.surface_z + CLEARANCE_MM:
             self.reference = Reference(entry_fz, "this session's start, z clear of the gel", False)
             self.free_z = z_mm
+            self._remember_unloaded()
         elif tare is not None:
             self.reference = Reference(tare.fz_N, "the remembered tare", False)
         else:
@@ -102,7 +104,12 @@ class ContactTracker:
         start can show (its load grows as soon as z goes down); that confirms the reference.
         One sooner raises StartedPressed: the rig cannot tell where the gel is."""
         loaded = self.is_loaded(wrench)
-        first = loaded and not self.loaded and descending and z_mm is not None
+        # Counted in every phase of a move: going down, braking at the end of a segment, or at rest
+        # after one (z no higher than where it last read no load). Not below a known surface with a
+        # reference read there: the session started pressed, and more load is no first contact.
+        came_down = z_mm is not None and self.free_z is not None and z_mm <= self.free_z + 1e-4
+        in_gel = self.reference.assumed and z_mm is not None and self.below_surface(z_mm)
+        first = loaded and not self.loaded and (descending or came_down) and z_mm is not None and not in_gel
         if not loaded and z_mm is not None:
             self.free_z = z_mm
         if first:
@@ -115,9 +122,22 @@ class ContactTracker:
                         "pressed. Lift z clear of the gel, then `rig zero` (or `rig find-contact`)"
                     )
                 self.reference = Reference(self.reference.fz_raw_N, "this session's start (confirmed unloaded)", False)
+                self._remember_unloaded()
             first = self._remember_surface(z_mm, what)
         self.loaded = loaded
         return first
+
+    def _remember_unloaded(self) -> None:
+        """A rig that has no tare remembered keeps this session's start, now known to be unloaded,
+        as its unloaded reading: a later session that starts pressed judges contact by it instead of
+        mistaking the gauge's constant offset for a load (docs/safety.md, "No tare")."""
+        if self.rig.state.tare is None and np.all(np.isfinite(self._entry_raw)):
+            self.rig.state.remember_tare(self._entry_raw)
+
+    def rebase(self, wrench, why: str) -> None:
+        """Take the averaged reading now as the unloaded reference (a lift found the load gone)."""
+        self.reference = Reference(self.averaged_raw_fz(wrench), why, False)
+        self.loaded = False
 
     def _remember_surface(self, z_mm: float, what: str) -> bool:
         """A first contact at ``z_mm`` becomes the remembered surface when none is remembered, when

@@ -27,8 +27,9 @@ import numpy as np
 
 from rig.types import WRENCH_COMPONENTS, WRENCH_UNITS
 
-TIMING_SAMPLES = 6  # distinct gauge arrivals used for its period (0.6 s of a 10 Hz gauge)
-EXCHANGES = 3  # status round trips timed per axis
+TIMING_SAMPLES = 6  # fresh gauge arrivals waited for when the period is measured (0.6 s of a 10 Hz gauge)
+TIMING_WINDOW = 40  # newest distinct arrivals the period is the median gap of (those already buffered count)
+EXCHANGES = 5  # round trips timed per axis (and per poll of a polled gauge): their median counts
 MIN_SPEED = 1e-4  # unit/s: a cap below this cannot make a move safe in any useful time
 RATE_WINDOW_SAMPLES = 6  # gauge samples behind a load-rate estimate
 
@@ -37,10 +38,11 @@ RATE_WINDOW_SAMPLES = 6  # gauge samples behind a load-rate estimate
 class Timing:
     """The measured parts of a stop's lag (s)."""
 
-    gauge_period_s: float  # longest gap between the gauge's arrivals (90th percentile)
+    gauge_period_s: float  # the gauge's sample period: the median gap between its arrivals
     gauge_latency_s: float  # the gauge's measurement-to-arrival bound (config fresh_after_s)
-    exchange_s: dict[str, float]  # per axis: longest command round trip seen
+    exchange_s: dict[str, float]  # per axis: the median command round trip
     device_reaction_s: dict[str, float]  # per axis: the controller's reaction to stop (config)
+    gauge_gap_s: float = 0.0  # the longest gap seen (90th percentile): when a quiet gauge counts as gone
 
     def stop_latency_s(self, axis: str) -> float:
         """From the stop command leaving the host to the axis starting to decelerate."""
@@ -52,26 +54,36 @@ class Timing:
 
 
 def measure_timing(rig) -> Timing:
-    """Measure the gauge's sample period and each axis's command round trip (reads only)."""
+    """Measure the gauge's sample period and each axis's command round trip (reads only).
+
+    Robust to a loaded host: the period is the median gap over the newest TIMING_WINDOW arrivals
+    (a streamed gauge's samples bunch up behind a stalled reader, which moves a high percentile
+    of a few gaps tenfold and the median not at all), the round trips the median of EXCHANGES.
+    A host that stalls longer than a check is covered by the bounded commands (rig/bounded.py),
+    not by the envelope."""
     clock, gauge = rig.clock, rig.gauge
     buffer = getattr(gauge, "buffer", None)
     if buffer is not None and getattr(gauge, "streaming", False):
         stamps = _distinct_stamps(buffer)
+        newest = stamps[-1] if stamps else -math.inf
         for _ in range(4 * TIMING_SAMPLES):
-            if len(stamps) > TIMING_SAMPLES:
+            live = sum(1 for t in stamps if t > newest)
+            if len(stamps) > TIMING_SAMPLES and live >= 2:  # enough gaps, and arrivals of now among them
                 break
             clock.sleep(0.001)  # past the newest sample: the next fresh one is a new arrival
             gauge.read_fresh()
             stamps = _distinct_stamps(buffer)
-        gaps = np.diff(stamps[-TIMING_SAMPLES - 1 :])
-        period = float(np.percentile(gaps, 90)) if len(gaps) else 0.0
+        gaps = np.diff(stamps[-TIMING_WINDOW - 1 :])
+        period = float(np.median(gaps)) if len(gaps) else 0.0
+        worst = float(np.percentile(gaps, 90)) if len(gaps) else 0.0
     else:
         durations = []
         for _ in range(EXCHANGES):
             t0 = clock.now()
             gauge.read()
             durations.append(clock.now() - t0)
-        period = max(durations)
+        period = float(np.median(durations))
+        worst = max(durations)
     exchange = {}
     for name, axis in rig.axes.items():
         durations = []
@@ -79,17 +91,18 @@ def measure_timing(rig) -> Timing:
             t0 = clock.now()
             axis.status()
             durations.append(clock.now() - t0)
-        exchange[name] = max(durations)
+        exchange[name] = float(np.median(durations))
     return Timing(
         gauge_period_s=period,
         gauge_latency_s=float(getattr(gauge, "fresh_after_s", 0.0)),
         exchange_s=exchange,
         device_reaction_s={name: rig.config.axes[name].stop_latency_s for name in rig.axes},
+        gauge_gap_s=max(worst, period),
     )
 
 
 def _distinct_stamps(buffer) -> list[float]:
-    return sorted({s.t_s for s in buffer.newest(4 * TIMING_SAMPLES)})
+    return sorted({s.t_s for s in buffer.newest(8 * TIMING_WINDOW)})
 
 
 def overshoot(speed: float, stiffness: float, reaction_s: float, decel: float) -> float:
@@ -149,14 +162,16 @@ class Envelope:
     def _zone(self, axis: str, zone: str) -> tuple[float, str, str, float, str]:
         """(stiffness, its source, the zone in words, the limit, its component) of a move.
 
-        zone: "gel" (z pressing inside the gel), "deep" (z below the depth floor), "pressed"
-        (a lateral or twist axis while the indenter is pressed)."""
+        zone: "gel" (z pressing inside the gel, or within the surface's uncertainty above it),
+        "unknown" (z going down with the gel's surface not known: it may touch anywhere), "deep"
+        (z below the depth floor), "pressed" (a lateral or twist axis while the indenter is pressed)."""
         if axis == "z":
             if zone == "deep":
                 k, source = self.safety.window_stiffness_N_per_mm, "stiffness of the window behind the gel"
                 return k, source, "below the depth floor", float(self.limits[2]), "Fz"
             k, source = self.normal_stiffness()
-            return k, source, "in contact with the gel", float(self.limits[2]), "Fz"
+            where = "near the gel (its surface is not known)" if zone == "unknown" else "in contact with the gel"
+            return k, source, where, float(self.limits[2]), "Fz"
         if axis == "theta":
             k = self.safety.twist_stiffness_Nmm_per_deg
             return k, "configured worst case", "twisting while pressed", float(self.limits[5]), "Mz"
@@ -199,6 +214,38 @@ class Envelope:
             return False
         self.measured_stiffness = 1.5 * k_N_per_mm
         return True
+
+
+CHANGE_NOTED = 0.15  # an in-contact speed this much away from the one measured before is said
+
+
+def envelope_change(envelope: "Envelope", state, poll_s: float, has_z: bool) -> str | None:
+    """One line when z's speed in contact differs by more than CHANGE_NOTED from the one this rig
+    measured before, saying which part of the timing moved; the new summary is remembered."""
+    if not has_z:
+        return None
+    t = envelope.timing
+    now = {
+        "z_cap_mm_s": envelope.cap("z", "gel", poll_s).speed,
+        "gauge_period_s": t.gauge_period_s,
+        "gauge_latency_s": t.gauge_latency_s,
+        "z_stop_latency_s": t.stop_latency_s("z"),
+    }
+    before = state.remember_envelope(now)
+    was = before.get("z_cap_mm_s")
+    if not was or abs(now["z_cap_mm_s"] / was - 1.0) <= CHANGE_NOTED:
+        return None
+    parts = [
+        f"{label} {1000 * now[key]:.1f} ms (was {1000 * before[key]:.1f})"
+        for key, label in (
+            ("gauge_period_s", "gauge sample period"),
+            ("gauge_latency_s", "gauge latency bound"),
+            ("z_stop_latency_s", "z stop latency"),
+        )
+        if key in before and abs(now[key] - before[key]) > 0.1 * max(before[key], 1e-3)
+    ]
+    why = "; ".join(parts) or "the safety config changed"
+    return f"speed envelope changed: z in contact at most {now['z_cap_mm_s']:.3g} mm/s (was {was:.3g} mm/s): {why}"
 
 
 @dataclass(frozen=True)

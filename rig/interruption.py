@@ -13,14 +13,17 @@ from dataclasses import dataclass, field
 from types import FrameType
 from typing import Any, Callable
 
-HANDLED_SIGNALS = ("SIGINT", "SIGTERM", "SIGHUP")  # Ctrl-C, kill/systemd, a closed terminal or SSH session
+from rig.early_signals import EARLY, HANDLED_SIGNALS
 
 
 class MotionInterrupted(KeyboardInterrupt):
-    """A signal stopped the motion; ``signal_name`` says which (SIGINT, SIGTERM, SIGHUP)."""
+    """A signal stopped the motion; ``signal_name`` says which (SIGINT, SIGTERM, SIGHUP).
+    ``secured``: a motion session's stop sequence has run for it (axes stopped, z lifted when
+    pressed), so whoever catches it need not run one again."""
 
     def __init__(self, signal_name: str):
         self.signal_name = signal_name
+        self.secured = False
         super().__init__(signal_name)
 
     @property
@@ -43,11 +46,12 @@ def describe(exc: BaseException | None) -> tuple[str, str]:
 class SignalsAsExceptions:
     """While entered (main thread only; elsewhere Python cannot install handlers), the
     handled signals raise ``MotionInterrupted``; with ``holding`` set they are only noted
-    in ``held``. The previous handlers come back on exit."""
+    in ``held``. A signal held since the command started (``EARLY``) is taken over on entry.
+    The previous handlers come back on exit."""
 
-    def __init__(self):
+    def __init__(self, *, holding: bool = False):
         self._previous: dict[int, Callable[[int, FrameType | None], Any] | int | None] = {}
-        self.holding = False
+        self.holding = holding
         self.held: str | None = None
 
     def __enter__(self) -> "SignalsAsExceptions":
@@ -56,6 +60,7 @@ class SignalsAsExceptions:
                 number = getattr(signal, name, None)
                 if number is not None:
                     self._previous[number] = signal.signal(number, self._handle)
+            self.held = self.held or EARLY.take()
         return self
 
     def _handle(self, signum, _frame) -> None:
@@ -64,6 +69,13 @@ class SignalsAsExceptions:
             self.held = self.held or name
             return
         raise MotionInterrupted(name)
+
+    def raise_held(self) -> None:
+        """Stop holding; a signal noted meanwhile is raised now."""
+        self.holding = False
+        held, self.held = self.held, None
+        if held is not None:
+            raise MotionInterrupted(held)
 
     def __exit__(self, *exc) -> None:
         for number, previous in self._previous.items():

@@ -15,14 +15,39 @@ from __future__ import annotations
 import logging
 from typing import TYPE_CHECKING, Any
 
-from rig.contact_state import CLEARANCE_MM, ContactTracker
+from rig.contact_state import CLEARANCE_MM, CONTACT_N, ContactTracker
 from rig.errors import DeviceError, DeviceTimeout, ForceLimitExceeded, RigError, SafetyError
 
 log = logging.getLogger("rig.motion")
 
 LIFT_MAX_MM = 5.0  # how far an error lift searches for release: beyond any gel the rig takes (3 mm)
+STEADY_MM = 0.2  # a reading unchanged over this much rise, above the surface, is the gauge's offset
 MIN_POLLS_BEFORE_TIMEOUT = 50  # as the session's waits: a fast simulated clock may pass a deadline in a poll
 TOLERANCE_MM = 1e-4
+
+
+class SteadyLoad:
+    """Whether the averaged reading has stopped changing while z rose STEADY_MM: the load is gone
+    and what is left is the gauge's offset (a lift judged against a reference read while pressed)."""
+
+    def __init__(self, contact: ContactTracker):
+        self.contact = contact
+        self.seen: list[tuple[float, float]] = []  # (z, averaged raw Fz)
+
+    def unchanged(self, z_mm: float, wrench) -> bool:
+        fz = self.contact.averaged_raw_fz(wrench)
+        self.seen.append((z_mm, fz))
+        below = [f for z, f in self.seen if z <= z_mm - STEADY_MM]
+        if not below:
+            return False
+        del self.seen[: max(0, len(self.seen) - 200)]
+        return (
+            abs(below[-1] - fz) < CONTACT_N / 2
+            and self.contact.surface_z() is not None
+            and (
+                z_mm > self.contact.surface_z() + TOLERANCE_MM  # type: ignore[operator]
+            )
+        )
 
 
 class LiftAfterFailure:
@@ -135,7 +160,13 @@ class LiftAfterFailure:
         guard = self._start({"z": top}, {"z": cfg.jog_speed}, self.rig.config.safety.poll_s)
         deadline = self.rig.clock.now() + 5.0 + 2.0 * (top - here) / cfg.jog_speed
         polls = 0
-        while contact.is_loaded(self.rig.gauge.read()):
+        steady = SteadyLoad(contact)
+        while contact.is_loaded(wrench := self.rig.gauge.read()):
+            if contact.reference.assumed and steady.unchanged(self.rig.axes["z"].position(), wrench):
+                # The reference was read while pressed (no tare remembered): a reading that no longer
+                # falls as z rises is the gauge's own offset, not a load.
+                contact.rebase(wrench, "a lift's steady reading (no tare remembered)")
+                break
             if not self.monitor(("z",), guard, "lift clear") and self._idle_since is None:
                 raise SafetyError(f"z lifted to {top:.3f} mm and the gauge still reads a load; lift it by hand")
             polls += 1

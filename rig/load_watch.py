@@ -27,7 +27,7 @@ def check_load_ahead(rig, wrench, guard, speeds: dict[str, float], poll_s: float
     values = wrench.as_array()
     timing = rig.envelope().timing
     age = max(0.0, now - wrench.t_s - timing.gauge_latency_s)
-    stale_s = 3 * timing.gauge_period_s + timing.gauge_latency_s + poll_s + STALE_GRACE_S
+    stale_s = 3 * max(timing.gauge_period_s, timing.gauge_gap_s) + timing.gauge_latency_s + poll_s + STALE_GRACE_S
     if age > stale_s:
         raise DeviceTimeout(
             getattr(rig.gauge, "label", "gauge"),

@@ -34,33 +34,31 @@ from typing import Callable, Literal
 
 import numpy as np
 
+from rig.bounded import BoundedCommands
 from rig.contact_state import CLEARANCE_MM, CONTACT_N, ContactTracker
-from rig.envelope import MIN_SPEED
+from rig.device_floor import ControllerFloor
 from rig.errors import (
-    DepthLimitError,
     DeviceFault,
     DeviceTimeout,
     ForceLimitExceeded,
     RigError,
     SafetyError,
-    SpeedRefused,
 )
 from rig.interruption import HANDLED_SIGNALS, MotionInterrupted, SignalsAsExceptions, StopReport, describe
 from rig.lift import LiftAfterFailure
-from rig.load_watch import check_load_ahead
-from rig.move_plan import TOLERANCE_MM, MovePlanner
+from rig.motion_envelope import EnvelopeWatch
+from rig.move_plan import TOLERANCE_MM
 from rig.safety import ForceGuard
 from rig.types import WrenchGuard
 
 log = logging.getLogger("rig.motion")
 
 AXIS_MOTION_METHODS = ("move_to", "home")  # the Axis methods (rig/types.py) that start motion
+SESSION_MODULES = ("rig/motion.py", "rig/bounded.py")  # the session and its command-issuing half: they alone send them
 HOME_ORDER = ("z", "x", "y", "theta")  # z first: the indenter lifts clear before anything slides
 MIN_POLLS_BEFORE_TIMEOUT = 50  # on a fast simulated clock one poll's exchanges can take seconds of clock time
 WITHDRAW_SPEED = 0.5  # mm/s: z withdrawn open-loop (no gauge) no faster than this
 REST_WAIT_S = 5.0  # how long a stop may brake before the stop sequence calls it a fault
-STIFFNESS_SPAN_MM = 0.005  # z travel behind one dFz/dz estimate (averaged readings: gauge noise / span ≪ k)
-STIFFNESS_POLLS = 6  # polls kept for it
 __all__ = [
     "CLEARANCE_MM",
     "CONTACT_N",
@@ -79,7 +77,7 @@ def active_sessions() -> tuple["Motion", ...]:
     return tuple(_active)
 
 
-class Motion(LiftAfterFailure):
+class Motion(LiftAfterFailure, BoundedCommands, EnvelopeWatch):
     """One guarded motion session on ``rig``; get it from ``rig.motion(what, ...)``.
 
     ``on_start(text)`` is told when each move or homing has started (the CLI prints it);
@@ -105,6 +103,7 @@ class Motion(LiftAfterFailure):
         allow_deep: bool = False,
         surface_hint: tuple[float, str] | None = None,
         search: bool = False,
+        pending_signal: str | None = None,
     ):
         self.rig = rig
         self.what = what
@@ -117,13 +116,19 @@ class Motion(LiftAfterFailure):
         self.search = search
         self.report: StopReport | None = None
         self._state = "new"  # new | open | closing | closed
-        self._signals = SignalsAsExceptions()
+        # Holding from the moment its handlers are in: a signal while the session opens (z may be
+        # pressed from an earlier command) waits for the opening, then runs the stop sequence.
+        self._signals = SignalsAsExceptions(holding=True)
+        self._signals.held = pending_signal  # a signal that landed before the session (rig/signal_safety.py)
         self._guard: ForceGuard | None = None  # the guard of the latest move
         self._moving: set[str] = set()  # started and not yet seen idle
         self._idle_since: float | None = None  # clock time the last axis went idle, until a later wrench passed
         self._contact: ContactTracker | None = None
         self._poll_s = rig.config.safety.poll_s if rig.config.safety else 0.02  # the running move's check period
-        self._commanded: dict[str, tuple[float, float]] = {}  # axis -> (target, speed) under way
+        self._commanded: dict[str, tuple[float, float]] = {}  # axis -> (the move's end, speed) under way
+        self._issued: dict[str, float] = {}  # axis -> the target sent: the end, or short of it (rig/bounded.py)
+        self._groups: list[set[str]] = []  # the axes of each move under way
+        self._floor = ControllerFloor(rig) if "z" in rig.axes else None  # z's controller limit (rig/device_floor.py)
         self._pressing: list[tuple[float, float]] = []  # (z, raw Fz) while z presses, for dF/dz
         self._notes_said: set[str] = set()
         self._actions: list[str] = []
@@ -149,9 +154,6 @@ class Motion(LiftAfterFailure):
                 f"(config {rig.config.path} [safety])"
             )
         self._signals.__enter__()
-        # A signal while the session opens (z may be pressed from an earlier command) waits
-        # for the opening to finish, then runs the stop sequence like any other.
-        self._signals.holding = True
         rig.motion_session = self
         _active.append(self)
         self._state = "open"
@@ -185,7 +187,9 @@ class Motion(LiftAfterFailure):
         if exc is None and late_error is not None:
             raise late_error
         if exc is None and held is not None:
-            raise MotionInterrupted(held)
+            late = MotionInterrupted(held)
+            late.secured = True  # it landed during the stop sequence, which then ran to its end
+            raise late
         return False
 
     def _finish(self, exc: BaseException | None) -> BaseException | None:
@@ -209,11 +213,16 @@ class Motion(LiftAfterFailure):
             )
             if "z" in self.rig.axes and not refused:
                 self._attempt(cleanup, "retract", lambda: self._lift_clear(failure))
+        if self._floor is not None and self._floor.saved is not None:
+            self._attempt(cleanup, "restoring z's controller travel limits", self._floor.release)
+        if failure is not None:
             if getattr(self.rig.gauge, "streaming", False):
                 self._attempt(cleanup, "stopping the gauge stream", self.rig.gauge.stop_stream)
             if self.rig.camera is not None:
                 camera, self.rig.camera = self.rig.camera, None
                 self._attempt(cleanup, "closing the camera", camera.close)
+        if isinstance(failure, MotionInterrupted):
+            failure.secured = True  # its stop sequence has run: no one needs to run another
         status, reason = describe(failure)
         self.report = StopReport(self.what, status, reason, failure, cleanup, list(self._actions))
         if self.on_stop is not None:
@@ -246,6 +255,8 @@ class Motion(LiftAfterFailure):
         self.rig.stop_all()
         self._moving.clear()
         self._commanded.clear()
+        self._issued.clear()
+        self._groups.clear()
         if len(self.rig.stop_errors) > before:
             raise self.rig.stop_errors[-1]
 
@@ -324,15 +335,11 @@ class Motion(LiftAfterFailure):
         return max(base, poll_s)
 
     def _start(self, targets: dict[str, float], speeds: dict[str, float], poll_s: float | None = None) -> ForceGuard:
-        guard = self._guard_for(targets)
+        guard, wrench = self._guard_for(targets)
         self._guard = guard
         self._poll_s = self._poll_for(poll_s)
         try:
-            for name, target in targets.items():
-                self._moving.add(name)
-                self._commanded[name] = (target, speeds[name])
-                self._moved = True
-                self.rig.axes[name].move_to(target, speeds[name])
+            self._send(targets, speeds, wrench)
         except BaseException:
             self.rig.stop_all()
             raise
@@ -353,83 +360,10 @@ class Motion(LiftAfterFailure):
             )
         return guard
 
-    # -- the envelope: depth and speed ------------------------------------------------------
-    def _pressed_now(self) -> bool:
-        contact = self._contact
-        if contact is None:
-            return False
-        if contact.loaded:
-            return True
-        return "z" in self.rig.axes and contact.below_surface(self.rig.axes["z"].position())
-
-    def _plan(
-        self, targets: dict[str, float], speeds: dict[str, float], poll_s: float, clamp: bool, split: bool = True
-    ) -> list[tuple[dict[str, float], dict[str, float]]]:
-        """The move as segments inside the speed envelope (rig/move_plan.py)."""
-        planner = MovePlanner(self.rig, self.surface_hint, self.allow_deep, self.search, self._note)
-        return planner.plan(targets, speeds, poll_s, clamp=clamp, split=split, pressed=self._pressed_now())
-
-    def _govern(self, z_mm: float, wrench) -> None:
-        """Mid-move: a z descent slows when it meets a contact its speed was not planned for
-        (a first contact, a stiffer contact than assumed), and stops at the depth floor."""
-        commanded = self._commanded.get("z")
-        if commanded is None or "z" not in self._moving:
-            return
-        target, speed = commanded
-        if target >= z_mm - TOLERANCE_MM:
-            return  # lifting, or there
-        envelope = self.rig.envelope()
-        contact = self._contact
-        assert contact is not None
-        guard = self.rig.depth_guard(self.surface_hint)
-        if guard is not None and not self.allow_deep:
-            if self.search and z_mm >= guard.floor_z and target < guard.floor_z - TOLERANCE_MM:
-                # the search looks no deeper than the floor (its caller stops at its own threshold)
-                target = guard.floor_z
-                self.rig.axes["z"].move_to(target, speed)
-                self._commanded["z"] = (target, speed)
-                self._note(f"z: searching no deeper than the depth floor, z = {target:.3f} mm")
-            if z_mm < guard.floor_z - TOLERANCE_MM or target < guard.floor_z - TOLERANCE_MM:
-                self.rig.stop_all()
-                raise DepthLimitError(
-                    f"z stopped at {z_mm:.3f} mm on its way to {target:.3f} mm: {guard.describe()} "
-                    "(--allow-deep goes deeper, slowly)"
-                )
-        if contact.loaded:
-            self._pressing.append((z_mm, contact.averaged_raw_fz(wrench)))
-            del self._pressing[:-STIFFNESS_POLLS]
-            (z0, f0), (z1, f1) = self._pressing[0], self._pressing[-1]
-            if z0 - z1 >= STIFFNESS_SPAN_MM and f1 > f0 and envelope.note_stiffness((f1 - f0) / (z0 - z1)):
-                k, _ = envelope.normal_stiffness()
-                self._note(f"z: the contact measures stiffer than assumed; assuming {k:.3g} N/mm")
-        deep = guard is not None and z_mm < guard.floor_z + TOLERANCE_MM
-        zone = "deep" if deep else "gel"
-        if not contact.loaded and not deep and not contact.reference.assumed and guard is not None:
-            return  # clear of the gel, on a planned approach
-        cap = envelope.cap("z", zone, self._poll_s)
-        if speed > cap.speed * (1 + 1e-9):
-            if self._strict:
-                self.rig.stop_all()
-                raise SpeedRefused(
-                    f"z stopped at {z_mm:.3f} mm: its {speed:g} mm/s is no longer inside the speed envelope "
-                    f"({cap.speed:.3g} mm/s) {cap.why()}; this step may not be slowed: raise [safety] "
-                    "stiffness_N_per_mm to this contact's and run it slower"
-                )
-            if cap.speed < MIN_SPEED:
-                self.rig.stop_all()
-                raise SpeedRefused(
-                    f"z stopped at {z_mm:.3f} mm: no speed is safe {cap.why()} (the envelope allows "
-                    f"{cap.speed:.2g} mm/s)"
-                )
-            slower = cap.speed
-            self._slowed_s += 2.0 * (z_mm - target) / slower  # the wait's deadline moves with the slower speed
-            self.rig.axes["z"].move_to(target, slower)
-            self._commanded["z"] = (target, slower)
-            self._note(f"z: slowed from {speed:g} to {slower:.3g} mm/s {cap.why()}")
-
-    def _guard_for(self, targets: dict[str, float]) -> ForceGuard:
-        """The guard for this move. Over a limit already, only lifting z (+z is away from
-        the gel) may start, guarded at the load it starts from so that it cannot grow."""
+    def _guard_for(self, targets: dict[str, float]):
+        """(the guard for this move, the fresh reading it was chosen by). Over a limit already,
+        only lifting z (+z is away from the gel) may start, guarded at the load it starts from so
+        that it cannot grow."""
         wrench = self.rig.gauge.read_fresh()
         lifting = set(targets) == {"z"} and targets["z"] > self.rig.axes["z"].position()
         if lifting and np.all(np.isfinite(wrench.as_array())):
@@ -437,9 +371,9 @@ class Motion(LiftAfterFailure):
             # envelope's margin) or the present load, whichever is higher, so that it cannot grow.
             margin = self.rig.config.safety.overshoot_margin
             relaxed = ForceGuard.from_limits(self.rig.guard.limits * (1.0 + margin))
-            return relaxed.relaxed_to(wrench)
+            return relaxed.relaxed_to(wrench), wrench
         self.rig.guard.check(wrench)
-        return self.rig.guard
+        return self.rig.guard, wrench
 
     def monitor(self, names, guard: WrenchGuard | None = None, what: str | None = None) -> set[str]:
         """One safety check: the wrench against the limits (read and predicted), the axes for
@@ -461,6 +395,8 @@ class Motion(LiftAfterFailure):
         if self._idle_since is not None and wrench.t_s - latency_s >= self._idle_since:
             self._idle_since = None
         moving = set()
+        idle: set[str] = set()
+        positions: dict[str, float] = {}
         z_seen = None
         for name in names:
             axis = rig.axes[name]
@@ -469,31 +405,30 @@ class Motion(LiftAfterFailure):
             faults = axis.faults(status)
             if faults:
                 raise DeviceFault(axis.label, what or self.what, status.warnings, ", ".join(faults))
+            positions[name] = status.position
             if name == "z":
                 z_seen = self._last_z_mm = status.position
-            if status.busy:
+            if status.busy or self._short(name):  # at rest short of its end (a bounded command): not done
                 moving.add(name)
+                if not status.busy:
+                    idle.add(name)
             elif name in self._moving:
                 self._moving.discard(name)
                 self._commanded.pop(name, None)
+                self._issued.pop(name, None)
                 self._idle_since = rig.clock.now()
         if self._contact is not None and self._state == "open":
             commanded = self._commanded.get("z")
             descending = z_seen is not None and commanded is not None and commanded[0] < z_seen - TOLERANCE_MM
             if self._contact.observe(wrench, z_seen, descending, self.what):
                 self._note(f"z: first contact at {z_seen:.4f} mm: remembered as the gel surface")
+                if descending and self._floor is not None and self._floor.saved is not None:
+                    self._floor.hold(self.controller_floor())  # the floor moves with the surface, in the controller too
             if z_seen is not None and "z" in moving:
                 self._govern(z_seen, wrench)
+        if self._issued and self._state in ("open", "closing"):
+            self._rebound(positions, idle, wrench)
         return moving
-
-    def _check_predicted(self, wrench, guard: WrenchGuard) -> None:
-        """The load predicted at the end of a stop, and a gauge gone quiet (rig/load_watch.py)."""
-        previous, self._previous = self._previous, (wrench.t_s, wrench.as_array())
-        z = self._commanded.get("z")
-        if set(self._moving) == {"z"} and z is not None and z[0] > self._last_z_mm:
-            return  # z going up, alone: the load can only fall
-        speeds = {name: self._commanded[name][1] if name in self._commanded else 0.0 for name in self._moving}
-        check_load_ahead(self.rig, wrench, guard, speeds, self._poll_s, self._move_started_s, previous)
 
     def time_left_s(self) -> float:
         """How long the started moves take from here at their commanded speeds (s)."""
@@ -601,7 +536,7 @@ class Motion(LiftAfterFailure):
                     "device's homing speed); lift z first (rig home --axis z)"
                 )
             # Homing z goes up, away from the gel: like a lift it may start from an overload.
-            self._guard = self._guard_for({name: float("inf")} if name == "z" else {name: 0.0})
+            self._guard, _ = self._guard_for({name: float("inf")} if name == "z" else {name: 0.0})
             self._moving.add(name)
             self._moved = True
             rig.axes[name].home()
@@ -614,10 +549,14 @@ class Motion(LiftAfterFailure):
                 raise DeviceFault(
                     rig.axes[name].label, "home", status, "homing finished but the axis is not referenced"
                 )
-            if name == "z" and self._contact is not None:
-                self._contact.loaded = self._contact.is_loaded(rig.gauge.read())
+            if name == "z":
+                rig.state.note_z_homed()  # a surface measured before this homing is unknown now
+                if self._contact is not None:
+                    self._contact.loaded = self._contact.is_loaded(rig.gauge.read())
 
     def stop(self) -> None:
         """Stop every axis now (a contact search stops at the touch)."""
         self.rig.stop_all()
         self._commanded.clear()
+        self._issued.clear()
+        self._groups.clear()

@@ -79,7 +79,10 @@ class MovePlanner:
         envelope = self.rig.envelope()
         out = dict(speeds)
         guard = self.rig.depth_guard(self.surface_hint)
-        entry = guard.surface_z + CLEARANCE_MM if guard is not None and not pressed else math.inf
+        # full speed only above where the gel could be: the surface, its uncertainty and the clearance
+        uncertainty = self.rig.config.safety.surface_uncertainty_mm
+        entry = guard.surface_z + uncertainty + CLEARANCE_MM if guard is not None and not pressed else math.inf
+        contact_zone = "gel" if guard is not None else "unknown"
         here = self.rig.axes["z"].position() if "z" in self.rig.axes else math.inf
         z_target = targets.get("z", here)
         descending = z_target < here - TOLERANCE_MM
@@ -97,14 +100,15 @@ class MovePlanner:
         self.check_depth(z_target)
         v = out["z"]
         floor = guard.floor_z if guard is not None else -math.inf
-        bands = [(math.inf, entry, None), (entry, floor, "gel"), (floor, -math.inf, "deep")]  # (top, bottom, cap)
+        # (top, bottom, the zone whose cap applies)
+        bands = [(math.inf, entry, None), (entry, floor, contact_zone), (floor, -math.inf, "deep")]
         entered = [
             (bottom, zone)
             for top, bottom, zone in bands
             if here > bottom + TOLERANCE_MM and z_target < top - TOLERANCE_MM
         ]
         if not entered:  # within a hair of a zone's edge: at the slower of the two
-            entered = [(floor, "gel")]
+            entered = [(floor, contact_zone)]
 
         def speed_in(zone: str | None) -> float:
             return v if zone is None else self.capped(envelope.cap("z", zone, poll_s), v, clamp)

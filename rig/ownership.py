@@ -62,8 +62,10 @@ RECORD_WAIT_S = 0.5  # how long a refused claim waits for the holder's record (w
 def runtime_dir() -> Path:
     """``/tmp/tactile-rig-UID``, made (0700) if missing: one folder per user whatever the process's
     environment (a cron job, `sudo -u`, a systemd service and a terminal must all meet in it);
-    ``$TACTILE_RUNTIME_DIR`` replaces it (the tests' own folder). RigError naming the folder when
-    it cannot be made, or (the default) is not a folder of this user's."""
+    ``$TACTILE_RUNTIME_DIR`` replaces it (the tests' own folder). Either must be a real folder (not
+    a link) owned by this user that no one else may write into or read (mode 0700 or stricter):
+    another user who could replace a lock file there could make this tool write through a link
+    or take a device's lock from under it. RigError naming the folder and the fix otherwise."""
     chosen = os.environ.get("TACTILE_RUNTIME_DIR")
     folder = Path(chosen) if chosen else Path(f"/tmp/tactile-rig-{os.getuid()}")
     try:
@@ -73,10 +75,15 @@ def runtime_dir() -> Path:
         raise RigError(
             f"runtime folder {folder}: cannot make it ({exc.strerror}); set TACTILE_RUNTIME_DIR to a writable folder"
         ) from None
-    if not chosen and (not stat.S_ISDIR(st.st_mode) or st.st_uid != os.getuid()):
+    if not stat.S_ISDIR(st.st_mode) or st.st_uid != os.getuid():
         raise RigError(
-            f"runtime folder {folder}: not a folder owned by uid {os.getuid()}; "
-            "set TACTILE_RUNTIME_DIR to a folder of yours"
+            f"runtime folder {folder}: not a folder owned by uid {os.getuid()} (a link, or another user's); "
+            "remove it or set TACTILE_RUNTIME_DIR to a folder of yours with mode 0700"
+        )
+    if st.st_mode & 0o077:
+        raise RigError(
+            f"runtime folder {folder}: mode {stat.S_IMODE(st.st_mode):04o} lets other users in; "
+            f"`chmod 700 {folder}` (device locks must be yours alone)"
         )
     return folder
 
@@ -244,9 +251,9 @@ class Holder:
         return data[: RECORD_BYTES - 1].ljust(RECORD_BYTES - 1) + b"\n"
 
 
-def parse_record(data: bytes) -> tuple[Holder, str] | None:
-    """(holder, the roles it holds the device for) from a lock file; None when it is empty
-    (released) or not written yet."""
+def parse_record(data: bytes) -> tuple[Holder, str, str | None] | None:
+    """(holder, the roles it holds the device for, the device it names) from a lock file; None
+    when it is empty (released) or not written yet."""
     try:
         fields = json.loads(data.decode().strip() or "null")
         pid, since, started = fields["pid"], fields["since"], fields.get("started")
@@ -254,19 +261,28 @@ def parse_record(data: bytes) -> tuple[Holder, str] | None:
             return None  # a hand-edited file: no process to name (and pid 0 would be a process group)
         since = float(since) if isinstance(since, (int, float)) and math.isfinite(since) else None
         started = started if isinstance(started, int) else None
-        return Holder(pid, str(fields["command"]), str(fields["host"]), since, started), str(fields.get("roles", ""))
+        device = fields.get("device")
+        return (
+            Holder(pid, str(fields["command"]), str(fields["host"]), since, started),
+            str(fields.get("roles", "")),
+            device if isinstance(device, str) else None,
+        )
     except (ValueError, TypeError, KeyError, UnicodeDecodeError, RecursionError):
         return None
 
 
-def _record_of(path: Path) -> tuple[Holder, str] | None:
+def _record_of(path: Path) -> tuple[Holder, str, str | None] | None:
     """The record in a lock file that another process has locked, waiting briefly for it
     (the holder writes it right after locking)."""
     deadline = time.monotonic() + RECORD_WAIT_S
     pause = threading.Event()
     while True:
         try:
-            record = parse_record(path.read_bytes())
+            fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW | os.O_CLOEXEC | os.O_NONBLOCK)
+            try:
+                record = parse_record(os.pread(fd, RECORD_BYTES, 0))
+            finally:
+                os.close(fd)
         except OSError:
             record = None
         if record is not None or time.monotonic() >= deadline:
@@ -290,13 +306,32 @@ def port_user(path: str) -> Holder | None:
 
 
 # -- claims ----------------------------------------------------------------------------------
+def _open_lock_file(path: Path) -> int:
+    """Open (or create) a lock file without following a link, and only if it is a plain file of
+    this user's with one name: a link planted in its place would have this process truncate and
+    write another file (O_NOFOLLOW refuses it), a hard link would do the same to the file it
+    shares. RigError naming the file otherwise; nothing is written to it."""
+    try:
+        fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC | os.O_NOFOLLOW | os.O_NONBLOCK, 0o600)
+    except OSError as exc:
+        why = "it is a symbolic link" if exc.errno == errno.ELOOP else exc.strerror
+        raise RigError(f"lock file {path}: cannot open it ({why}); remove it and try again") from None
+    st = os.fstat(fd)
+    if not stat.S_ISREG(st.st_mode) or st.st_uid != os.getuid() or st.st_nlink != 1:
+        os.close(fd)
+        what = (
+            "not a plain file"
+            if not stat.S_ISREG(st.st_mode)
+            else ("another user's" if st.st_uid != os.getuid() else f"a file with {st.st_nlink} names (a hard link)")
+        )
+        raise RigError(f"lock file {path}: {what}; remove it and try again (nothing was written to it)")
+    return fd
+
+
 def _take(folder: Path, endpoint: str, roles: str, me: Holder, subject: str) -> tuple[int, str | None]:
     """Lock ``endpoint``'s file and write ``me`` into it: (fd, the stale-lock note or None)."""
     path = lock_path(endpoint, folder)
-    try:
-        fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o664)
-    except OSError as exc:
-        raise RigError(f"lock file {path}: cannot open it ({exc.strerror})") from None
+    fd = _open_lock_file(path)
     try:
         fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
     except OSError as exc:
@@ -306,7 +341,11 @@ def _take(folder: Path, endpoint: str, roles: str, me: Holder, subject: str) -> 
         record = _record_of(path)
         if record is None:
             raise DeviceBusy(endpoint, roles, detail="(its record is not written yet)", subject=subject) from None
-        holder, its_roles = record
+        holder, its_roles, its_device = record
+        if its_device not in (None, endpoint):  # a record copied or moved in from another lock file
+            raise DeviceBusy(
+                endpoint, roles, detail=f"(its lock file {path} names {its_device}: check {path})", subject=subject
+            ) from None
         raise holder.busy(endpoint, its_roles or roles, subject) from None  # the roles it holds the device for
     try:
         record = parse_record(os.pread(fd, RECORD_BYTES, 0))
@@ -316,7 +355,7 @@ def _take(folder: Path, endpoint: str, roles: str, me: Holder, subject: str) -> 
         raise RigError(f"lock file {path}: cannot write it ({exc.strerror})") from None
     if record is None:
         return fd, None
-    before, its_roles = record
+    before, its_roles, _ = record
     alive = before.alive()
     why = {
         False: "that process is gone",

@@ -16,12 +16,14 @@ import numpy as np
 from rig.clock import Clock, SystemClock
 from rig.config import RigConfig
 from rig.contact_state import CLEARANCE_MM
-from rig.envelope import DepthGuard, Envelope, measure_timing
+from rig.device_floor import restore_left_behind
+from rig.envelope import DepthGuard, Envelope, envelope_change, measure_timing
 from rig.errors import DeviceError, RigError, SafetyError
 from rig.factory import PortPool, open_axis, open_camera, open_gauge
 from rig.ownership import Claim, claim_rig
 from rig.rig_state import RigState, age_text
 from rig.safety import ForceGuard, check_speed, check_target
+from rig.surface_identity import check_power_up
 from rig.types import Axis, AxisStatus, Camera, ForceGauge, RigStatus
 
 if TYPE_CHECKING:
@@ -68,10 +70,13 @@ class Rig:
         gauge: bool = True,
         camera: bool = False,
         sim=None,
+        indenter: str | None = None,
     ) -> "Rig":
         """Open only the devices asked for (``axes=None``: all configured axes), claimed first
         (rig/ownership.py): DeviceBusy naming the holder, and nothing opened, when another
-        process holds one of them."""
+        process holds one of them. With z: the controller limits a killed session left narrowed
+        are restored and its power-up checked (rig/device_floor.py, rig/surface_identity.py).
+        ``indenter``: the object now mounted (``--object``, a protocol's), None: as remembered."""
         clock = clock or SystemClock()
         names = tuple(config.axes) if axes is None else axes
         for name in names:
@@ -102,6 +107,13 @@ class Rig:
             raise
         rig = cls(config, clock, axes=opened_axes, gauge=opened_gauge, camera=opened_camera, pool=pool, state=state)
         rig.claim = claim
+        try:
+            for note in (state.mount(indenter), restore_left_behind(rig), check_power_up(rig)):
+                if note:
+                    log.warning("%s", note)
+        except BaseException:
+            rig.close()
+            raise
         return rig
 
     # -- reading ----------------------------------------------------------------
@@ -136,8 +148,12 @@ class Rig:
         round trip, measured once (reads only) when first asked for."""
         if self._envelope is None:
             self.require_armed(())
-            assert self.guard is not None  # require_armed refuses a rig without one
-            self._envelope = Envelope(self.config.safety, self.config.axes, measure_timing(self), self.guard.limits)
+            safety = self.config.safety
+            assert self.guard is not None and safety is not None  # require_armed refuses a rig without them
+            self._envelope = Envelope(safety, self.config.axes, measure_timing(self), self.guard.limits)
+            note = envelope_change(self._envelope, self.state, safety.poll_s, "z" in self.axes)
+            if note:
+                log.warning("%s", note)
         return self._envelope
 
     @contextlib.contextmanager

@@ -5,8 +5,14 @@ where the load began, whatever process it runs in. Two facts outlive a command:
 
 - the **tare**: the raw (untared) wrench with nothing touching, and when it was taken
   (`rig zero`, the tare before a protocol run, find-contact's tare);
-- the **gel surface**: the z (axis mm) where a load began, from `rig find-contact` or the
-  first contact a motion session saw, and how it was found;
+- the **gel surface** of each indenter: the z (axis mm) where a load began, from `rig
+  find-contact` or the first contact a motion session saw, how it was found, and what it belongs
+  to: the indenter mounted (``--object``, a protocol's object), the z homing and the z
+  controller's power-up it was measured under. A different indenter, a re-home, a power cycle
+  (the token in the controller's volatile memory is gone: rig/surface_identity.py) or an age
+  past [safety] surface_max_age_h makes it unknown;
+- the z controller's own **travel limits** while a session has narrowed them to the depth floor
+  (rig/device_floor.py), so that a later command restores those a killed process left;
 - the **origin** (optional): the contact point x, y, z (mm), θ (deg) that `rig find-contact
   --set-origin` stored for `rig run-protocol`, and when.
 
@@ -32,7 +38,8 @@ from typing import Any
 
 from common.errors import ConfigError
 
-STATE_VERSION = 1
+STATE_VERSION = 2
+READABLE_VERSIONS = (1, 2)  # version 1: one surface without what it belongs to (read as unknown)
 
 
 def state_dir() -> Path:
@@ -69,6 +76,20 @@ class Surface:
     z_mm: float  # axis z where a load began
     how: str  # "find-contact", "first contact (jog)", ...
     t_unix: float
+    indenter: str = ""  # the object mounted when it was measured ("": none named)
+    power_token: int | None = None  # the z controller's power-up token then (None: not known)
+    z_homed_unix: float | None = None  # when z had last been homed then (None: not by this tool)
+
+
+@dataclass(frozen=True)
+class DeviceLimits:
+    """A controller's travel limits as a session found them (``saved``, native units) and as it
+    narrowed them (``narrowed``), by ``pid`` at ``t_unix``: written before the narrowing."""
+
+    saved: tuple[int, int]
+    narrowed: tuple[int, int]
+    pid: int
+    t_unix: float
 
 
 @dataclass(frozen=True)
@@ -91,19 +112,67 @@ class Origin:
 
 
 class RigState:
-    """The remembered tare and gel surface of one rig; ``path`` None keeps them in memory."""
+    """The remembered tare, gel surfaces, origin and controller limits of one rig; ``path`` None
+    keeps them in memory. ``surface`` is the one that belongs to what the rig is now: the mounted
+    indenter's, measured under this power-up of the z controller and this homing, and not older
+    than ``max_age_s`` (``why_unknown`` says which of these failed)."""
 
     def __init__(self, path: Path | None):
         self.path = path
         self.tare: Tare | None = None
-        self.surface: Surface | None = None
+        self.surfaces: dict[str, Surface] = {}
+        self.mounted = ""  # the indenter named last (``--object``, a protocol's object); "": none
+        self.power_token: int | None = None  # the token in the z controller now (None: it holds none)
+        self.z_homed_unix: float | None = None  # when this tool last homed z
+        self.device_limits: dict[str, DeviceLimits] = {}
         self.origin: Origin | None = None
+        self.envelope: dict[str, float] = {}  # the last speed envelope measured: its inputs and z's cap in contact
+        self.max_age_s = math.inf
         if path is not None and path.exists():
             self._load(path)
 
     @classmethod
     def for_config(cls, config) -> "RigState":
-        return cls(state_path(config.path, config.name))
+        state = cls(state_path(config.path, config.name))
+        if config.safety is not None:
+            state.max_age_s = config.safety.surface_max_age_h * 3600.0
+        return state
+
+    # -- the surface that belongs to the rig as it is ---------------------------------------
+    def why_unknown(self, surface: Surface | None, now_unix: float | None = None) -> str | None:
+        """Why ``surface`` does not belong to the rig as it is now; None when it does."""
+        if surface is None:
+            return f"none measured with {self.mounted or 'the indenter'}"
+        if self.power_token is not None and surface.power_token != self.power_token:
+            return "the z controller was powered off and on since it was measured"
+        if surface.z_homed_unix != self.z_homed_unix:
+            return "z was homed since it was measured"
+        age = (time.time() if now_unix is None else now_unix) - surface.t_unix
+        if age > self.max_age_s:
+            return f"measured {age_text(surface.t_unix)}, more than {self.max_age_s / 3600:g} h ago"
+        return None
+
+    @property
+    def surface(self) -> Surface | None:
+        found = self.surfaces.get(self.mounted)
+        return found if self.why_unknown(found) is None else None
+
+    @surface.setter
+    def surface(self, value: Surface | None) -> None:  # in memory only (tests stand in a rig's past)
+        if value is None:
+            self.surfaces.pop(self.mounted, None)
+        else:
+            self.surfaces[self.mounted] = value
+
+    def mount(self, indenter: str | None) -> str | None:
+        """The indenter now on the rig (None: unchanged). Returns a note when it changed."""
+        if indenter is None or indenter == self.mounted:
+            return None
+        before, self.mounted = self.mounted, indenter
+        self.save()
+        known = self.surfaces.get(indenter)
+        has = "" if known is None else f"; its surface, measured {age_text(known.t_unix)}, is remembered"
+        return f"indenter {indenter} mounted (was {before or 'unnamed'}){has}"
 
     # -- reading back, every value checked ---------------------------------------------
     def _load(self, path: Path) -> None:
@@ -111,20 +180,29 @@ class RigState:
             data = json.loads(path.read_text())
         except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
             raise ConfigError(str(path), "-", f"rig state is unreadable ({exc}); delete it to start afresh") from None
-        if not isinstance(data, dict) or data.get("version") != STATE_VERSION:
+        if not isinstance(data, dict) or data.get("version") not in READABLE_VERSIONS:
             raise ConfigError(str(path), "version", f"expected rig state version {STATE_VERSION}; delete the file")
         tare = data.get("tare")
         if tare is not None:
             raw = _numbers(path, "tare.raw", _field(path, tare, "tare", "raw"), 6)
             self.tare = Tare(raw, _numbers(path, "tare.t_unix", [_field(path, tare, "tare", "t_unix")], 1)[0])
-        surface = data.get("surface")
-        if surface is not None:
-            z = _numbers(path, "surface.z_mm", [_field(path, surface, "surface", "z_mm")], 1)[0]
-            t = _numbers(path, "surface.t_unix", [_field(path, surface, "surface", "t_unix")], 1)[0]
-            how = _field(path, surface, "surface", "how")
-            if not isinstance(how, str):
-                raise ConfigError(str(path), "surface.how", f"must be text, got {how!r}")
-            self.surface = Surface(z, how, t)
+        if data.get("version") == 1 and data.get("surface") is not None:
+            self.surfaces[""] = _surface(path, "surface", data["surface"])
+        for name, surface in _table(path, "surfaces", data.get("surfaces", {})).items():
+            self.surfaces[name] = _surface(path, f"surfaces.{name}", surface)
+        self.mounted = _text(path, "mounted", data.get("mounted", ""))
+        self.power_token = _optional_int(path, "power_token", data.get("power_token"))
+        homed = data.get("z_homed_unix")
+        self.z_homed_unix = None if homed is None else _numbers(path, "z_homed_unix", [homed], 1)[0]
+        for axis, limits in _table(path, "device_limits", data.get("device_limits", {})).items():
+            key = f"device_limits.{axis}"
+            saved = _ints(path, f"{key}.saved", _field(path, limits, key, "saved"), 2)
+            narrowed = _ints(path, f"{key}.narrowed", _field(path, limits, key, "narrowed"), 2)
+            pid = _ints(path, f"{key}.pid", [_field(path, limits, key, "pid")], 1)[0]
+            t = _numbers(path, f"{key}.t_unix", [_field(path, limits, key, "t_unix")], 1)[0]
+            self.device_limits[axis] = DeviceLimits((saved[0], saved[1]), (narrowed[0], narrowed[1]), pid, t)
+        envelope = _table(path, "envelope", data.get("envelope", {}))
+        self.envelope = {k: _numbers(path, f"envelope.{k}", [v], 1)[0] for k, v in envelope.items()}
         origin = data.get("origin")
         if origin is not None:
             x, y, z, theta = _numbers(path, "origin.xyzt", _field(path, origin, "origin", "xyzt"), 4)
@@ -141,16 +219,51 @@ class RigState:
         return self.tare
 
     def remember_surface(self, z_mm: float, how: str, t_unix: float | None = None) -> Surface:
+        """The gel surface of the mounted indenter, under this power-up and homing of z."""
         if not math.isfinite(z_mm):
             raise ValueError(f"a gel surface needs a finite z, got {z_mm!r}")
-        self.surface = Surface(float(z_mm), how, time.time() if t_unix is None else t_unix)
+        surface = Surface(
+            float(z_mm),
+            how,
+            time.time() if t_unix is None else t_unix,
+            self.mounted,
+            self.power_token,
+            self.z_homed_unix,
+        )
+        self.surfaces[self.mounted] = surface
         self.save()
-        return self.surface
+        return surface
 
     def forget_surface(self) -> None:
-        """Forget the gel surface (find-contact measures it anew: a new indenter may touch lower)."""
-        self.surface = None
+        """Forget the mounted indenter's surface (find-contact measures it anew)."""
+        self.surfaces.pop(self.mounted, None)
         self.save()
+
+    def note_power_token(self, token: int | None) -> None:
+        """The token now in the z controller (surfaces measured under another become unknown)."""
+        if token != self.power_token:
+            self.power_token = token
+            self.save()
+
+    def note_z_homed(self, t_unix: float | None = None) -> None:
+        """z was homed: every remembered surface becomes unknown (docs/safety.md)."""
+        self.z_homed_unix = time.time() if t_unix is None else t_unix
+        self.save()
+
+    def remember_device_limits(self, axis: str, limits: DeviceLimits | None) -> None:
+        if limits is None:
+            if self.device_limits.pop(axis, None) is not None:
+                self.save()
+            return
+        self.device_limits[axis] = limits
+        self.save()
+
+    def remember_envelope(self, values: dict[str, float]) -> dict[str, float]:
+        """The newly measured envelope's summary; returns the one remembered before it."""
+        before, self.envelope = self.envelope, {k: float(v) for k, v in values.items() if math.isfinite(v)}
+        if self.envelope != before:
+            self.save()
+        return before
 
     def remember_origin(self, values, t_unix: float | None = None) -> Origin:
         """Store the contact point x, y, z (mm), θ (deg) for ``rig run-protocol``."""
@@ -172,13 +285,29 @@ class RigState:
     def save(self) -> None:
         if self.path is None:
             return
-        data: dict[str, Any] = {"version": STATE_VERSION}
+        data: dict[str, Any] = {"version": STATE_VERSION, "mounted": self.mounted}
         if self.tare is not None:
             data["tare"] = {"raw": list(self.tare.raw_N), "t_unix": self.tare.t_unix}
-        if self.surface is not None:
-            data["surface"] = {"z_mm": self.surface.z_mm, "how": self.surface.how, "t_unix": self.surface.t_unix}
+        data["surfaces"] = {
+            name: {
+                "z_mm": s.z_mm,
+                "how": s.how,
+                "t_unix": s.t_unix,
+                "indenter": s.indenter,
+                "power_token": s.power_token,
+                "z_homed_unix": s.z_homed_unix,
+            }
+            for name, s in self.surfaces.items()
+        }
+        data["power_token"] = self.power_token
+        data["z_homed_unix"] = self.z_homed_unix
+        data["device_limits"] = {
+            axis: {"saved": list(d.saved), "narrowed": list(d.narrowed), "pid": d.pid, "t_unix": d.t_unix}
+            for axis, d in self.device_limits.items()
+        }
         if self.origin is not None:
             data["origin"] = {"xyzt": list(self.origin.values), "t_unix": self.origin.t_unix}
+        data["envelope"] = dict(self.envelope)
         self.path.parent.mkdir(parents=True, exist_ok=True)
         tmp = self.path.with_name(f"{self.path.name}.{os.getpid()}.tmp")
         with open(tmp, "w") as f:
@@ -206,6 +335,43 @@ def _field(path: Path, table: Any, name: str, key: str) -> Any:
     if not isinstance(table, dict) or key not in table:
         raise ConfigError(str(path), f"{name}.{key}", "is missing from the rig state; delete the file")
     return table[key]
+
+
+def _table(path: Path, key: str, value: Any) -> dict[str, Any]:
+    if not isinstance(value, dict) or not all(isinstance(k, str) for k in value):
+        raise ConfigError(str(path), key, f"must be a table, got {value!r}; delete the file")
+    return value
+
+
+def _text(path: Path, key: str, value: Any) -> str:
+    if not isinstance(value, str):
+        raise ConfigError(str(path), key, f"must be text, got {value!r}; delete the file")
+    return value
+
+
+def _optional_int(path: Path, key: str, value: Any) -> int | None:
+    return None if value is None else _ints(path, key, [value], 1)[0]
+
+
+def _ints(path: Path, key: str, values: Any, n: int) -> tuple[int, ...]:
+    if (
+        not isinstance(values, list)
+        or len(values) != n
+        or not all(isinstance(v, int) and not isinstance(v, bool) and abs(v) < 2**63 for v in values)
+    ):
+        raise ConfigError(str(path), key, f"must be {n} integer(s), got {values!r}; delete the file")
+    return tuple(values)
+
+
+def _surface(path: Path, key: str, table: Any) -> Surface:
+    z = _numbers(path, f"{key}.z_mm", [_field(path, table, key, "z_mm")], 1)[0]
+    t = _numbers(path, f"{key}.t_unix", [_field(path, table, key, "t_unix")], 1)[0]
+    how = _text(path, f"{key}.how", _field(path, table, key, "how"))
+    indenter = _text(path, f"{key}.indenter", table.get("indenter", ""))
+    token = _optional_int(path, f"{key}.power_token", table.get("power_token"))
+    homed = table.get("z_homed_unix")
+    homed_at = None if homed is None else _numbers(path, f"{key}.z_homed_unix", [homed], 1)[0]
+    return Surface(z, how, t, indenter, token, homed_at)
 
 
 def _numbers(path: Path, key: str, values: Any, n: int) -> tuple[float, ...]:

@@ -25,7 +25,7 @@ import pytest
 from processes import stop
 
 from rig import ownership
-from rig.errors import DeviceBusy
+from rig.errors import DeviceBusy, RigError
 from rig.transport import exclusive
 from rig.transport.serial_link import SerialLink
 
@@ -420,3 +420,52 @@ def test_tiocexcl_keeps_other_opens_out_and_is_cleared(tmp_path):
     finally:
         os.close(master)
         os.close(slave)
+
+
+# -- lock files that another user could plant -------------------------------------------------
+def test_a_symlinked_lock_file_leaves_its_target_untouched(tmp_path, monkeypatch):
+    folder = tmp_path / "runtime"
+    folder.mkdir(mode=0o700)
+    monkeypatch.setenv("TACTILE_RUNTIME_DIR", str(folder))
+    target = tmp_path / "someone-elses-file"
+    target.write_text("precious\n")
+    endpoint = "127.0.0.1:4999"
+    ownership.lock_path(endpoint).symlink_to(target)
+    with pytest.raises(RigError, match=r"cannot open it \(it is a symbolic link\)"):
+        ownership.claim({endpoint: ["axis z"]})
+    assert target.read_text() == "precious\n"
+    ownership.lock_path(endpoint).unlink()
+    os.link(target, ownership.lock_path(endpoint))  # a hard link: the same file under two names
+    with pytest.raises(RigError, match="hard link"):
+        ownership.claim({endpoint: ["axis z"]})
+    assert target.read_text() == "precious\n"
+
+
+@pytest.mark.parametrize("mode", [0o777, 0o755, 0o1777])
+def test_a_lock_folder_others_can_enter_is_refused_in_one_line(tmp_path, monkeypatch, mode):
+    folder = tmp_path / "runtime"
+    folder.mkdir()
+    folder.chmod(mode)
+    monkeypatch.setenv("TACTILE_RUNTIME_DIR", str(folder))
+    with pytest.raises(RigError, match=rf"mode {mode & 0o7777:04o} lets other users in; `chmod 700"):
+        ownership.claim({"127.0.0.1:4999": ["gauge"]})
+    link = tmp_path / "link"
+    link.symlink_to(folder)
+    monkeypatch.setenv("TACTILE_RUNTIME_DIR", str(link))
+    with pytest.raises(RigError, match="not a folder owned by"):
+        ownership.claim({"127.0.0.1:4999": ["gauge"]})
+
+
+def test_a_busy_message_names_the_device_its_record_is_of(tmp_path, monkeypatch):
+    """A record copied in from another lock file names another device: the refusal says so instead
+    of blaming the holder for the wrong device."""
+    folder = tmp_path / "runtime"
+    folder.mkdir(mode=0o700)
+    monkeypatch.setenv("TACTILE_RUNTIME_DIR", str(folder))
+    held = ownership.claim({"127.0.0.1:4001": ["axis x"]})
+    try:
+        os.rename(ownership.lock_path("127.0.0.1:4001"), ownership.lock_path("127.0.0.1:4002"))
+        with pytest.raises(DeviceBusy, match=r"its lock file .* names 127.0.0.1:4001"):
+            ownership.claim({"127.0.0.1:4002": ["gauge"]})
+    finally:
+        held.release()

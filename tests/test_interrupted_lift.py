@@ -165,7 +165,7 @@ def test_signals_to_rig_jog_in_another_process_lift_it_clear_after_rig_zero(tmp_
         )  # from 5 mm up, at the in-contact speed
         assert first.returncode == 0, first.stderr
         assert "first contact" in first.stderr
-        surface = json.loads(state_path(str(cfg), "simulated rig").read_text())["surface"]["z_mm"]
+        surface = json.loads(state_path(str(cfg), "simulated rig").read_text())["surfaces"][""]["z_mm"]
         assert -0.3 < surface < 0.0
         rng = __import__("random").Random(24)
         for name in SIGNALS:

@@ -283,3 +283,23 @@ def test_modbus_broadcast_write_is_carried_out_by_every_drive_and_unanswered(wor
         link.read_exact(8, "broadcast")
     assert [s.regs[0x6203] for s in sims.values()] == [120, 120]
     link.close()
+
+
+def test_pr_drive_software_limits_are_set_read_back_and_stop_a_path(pr_axis, world, manual_clock):
+    """The drive's software limits (Pr8.00 bit1, Pr8.06-Pr8.09: registers ASSUMED in
+    rig/drivers/pr_registers.py) hold a z floor on a PR-mode axis: set and read back by the
+    driver, a path beyond them stops at them, and the int32 extremes disable them again."""
+    axis, sim, _ = pr_axis
+    assert axis.native_limits() == (-(2**31), 2**31 - 1)  # disabled at power-up
+    low, high = axis.native_range(-10.0, 5.0)
+    assert (low, high) == (425000, 462500)  # -10 and +5 deg, counted from -180 deg at 2500 pulses per deg
+    axis.set_native_limits(low, high)
+    assert axis.native_limits() == (low, high) and sim.soft_limits() == (low, high)
+    axis.move_to(8.0, 10.0)
+    manual_clock.advance(5)
+    assert axis.position() == pytest.approx(5.0) and world.pose().theta_deg == pytest.approx(5.0)
+    axis.set_native_limits(-(2**31), 2**31 - 1)
+    assert sim.soft_limits() is None
+    axis.move_to(8.0, 10.0)
+    manual_clock.advance(5)
+    assert axis.position() == pytest.approx(8.0)

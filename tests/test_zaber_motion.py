@@ -116,3 +116,26 @@ def test_out_of_range_move_is_rejected(zml):
         x.move_absolute(40.0, MM)  # beyond the 25 mm travel
     assert err.value.details.response_data == "BADDATA"
     assert world.stages["x"].position(clock.now()) == pytest.approx(12.5, abs=US_MM)
+
+
+def test_travel_limits_set_and_read_back_by_zaber_motion_are_enforced(zml):
+    """The rig keeps its depth floor in the controller (rig/device_floor.py): Zaber's own client
+    sets limit.min/limit.max on the simulator, reads them back, and a move beyond is refused as
+    the manual says; a velocity move stops at the limit."""
+    conn, world, clock = zml
+    x = conn.detect_devices()[0].get_axis(1)
+    x.settings.set("limit.max", 14.0, MM)
+    x.settings.set("limit.min", 11.0, MM)
+    assert x.settings.get("limit.max", MM) == pytest.approx(14.0, abs=US_MM)
+    assert x.settings.get("limit.min", MM) == pytest.approx(11.0, abs=US_MM)
+    with pytest.raises(CommandFailedException) as err:
+        x.move_absolute(15.0, MM)
+    assert err.value.details.response_data == "BADDATA"
+    with pytest.raises(CommandFailedException):
+        x.move_absolute(10.0, MM)
+    assert world.stages["x"].position(clock.now()) == pytest.approx(12.5, abs=US_MM)  # nothing moved
+    x.move_velocity(3.0, Units.VELOCITY_MILLIMETRES_PER_SECOND)
+    x.wait_until_idle()
+    assert x.get_position(MM) == pytest.approx(14.0, abs=US_MM)  # stopped at limit.max
+    x.move_absolute(12.0, MM)
+    assert x.get_position(MM) == pytest.approx(12.0, abs=US_MM)

@@ -56,6 +56,11 @@ DEFAULT_SHEAR_STIFFNESS_N_PER_MM = 20.0
 DEFAULT_TWIST_STIFFNESS_NMM_PER_DEG = 10.0
 DEFAULT_WINDOW_STIFFNESS_N_PER_MM = 60000.0  # a rigid plate over a 14 mm pad on acrylic: ~57 N/µm
 DEFAULT_OVERSHOOT_MARGIN = 0.1
+# How far the real gel surface may lie above the remembered one without the rig being told (a
+# longer indenter, a thicker gel, a sensor moved): descents leave full speed this far above it
+# plus the clearance, so that an approach frozen in mid-move stops short of the gel.
+DEFAULT_SURFACE_UNCERTAINTY_MM = 1.0
+DEFAULT_SURFACE_MAX_AGE_H = 24.0  # a remembered surface older than this is forgotten
 # An axis's stop: the device's reaction to the stop command (the wire and the host are measured
 # when the rig opens) and its deceleration. Conservative where a config does not say.
 DEFAULT_STOP_LATENCY_S = 0.01
@@ -135,6 +140,8 @@ class SafetyConfig:
     twist_stiffness_Nmm_per_deg: float = DEFAULT_TWIST_STIFFNESS_NMM_PER_DEG  # worst-case dMz/dθ while pressed
     window_stiffness_N_per_mm: float = DEFAULT_WINDOW_STIFFNESS_N_PER_MM  # the indenter on the window behind the gel
     overshoot_margin: float = DEFAULT_OVERSHOOT_MARGIN  # a stop may overshoot a limit by this fraction of it
+    surface_uncertainty_mm: float = DEFAULT_SURFACE_UNCERTAINTY_MM  # the real surface may be this much higher
+    surface_max_age_h: float = DEFAULT_SURFACE_MAX_AGE_H  # a remembered surface older than this is unknown
 
 
 @dataclass(frozen=True)
@@ -285,6 +292,10 @@ def _safety(path: str, data: Any) -> SafetyConfig:
             "window_stiffness_N_per_mm", float, DEFAULT_WINDOW_STIFFNESS_N_PER_MM, positive=True, high=1e8
         ),
         overshoot_margin=t.get("overshoot_margin", float, DEFAULT_OVERSHOOT_MARGIN, positive=True, high=1.0),
+        surface_uncertainty_mm=t.get(
+            "surface_uncertainty_mm", float, DEFAULT_SURFACE_UNCERTAINTY_MM, low=0.0, high=TRAVEL_LIMIT
+        ),
+        surface_max_age_h=t.get("surface_max_age_h", float, DEFAULT_SURFACE_MAX_AGE_H, positive=True, high=24.0 * 365),
     )
     t.done()
     return cfg

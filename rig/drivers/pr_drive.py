@@ -10,6 +10,8 @@ monitoring registers 0x1003 and 0x1012/0x1013. Registers and their sources:
 
 from __future__ import annotations
 
+import math
+
 from rig.drivers import pr_registers as reg
 from rig.errors import DeviceFault, DeviceRejected
 from rig.transport.modbus_bus import ModbusBus, join_int32, split_int32
@@ -128,6 +130,33 @@ class PrDriveAxis:
 
     def home(self) -> None:
         self._write(reg.PR_CONTROL, [reg.CTRL_HOME])
+
+    # -- the drive's own software travel limits (rig/device_floor.py; registers ASSUMED) ---------
+    def native_limits(self) -> tuple[int, int]:
+        """(negative, positive) software limits in pulses; the int32 extremes while disabled."""
+        (control,) = self._read(reg.PR_CONTROL_SETTING, 1)
+        if not control & reg.SOFT_LIMIT_ENABLE:
+            return reg.INT32_MIN, reg.INT32_MAX
+        pos_high, pos_low, neg_high, neg_low = self._read(reg.SOFT_LIMIT_POS_HIGH, 4)
+        return join_int32(neg_high, neg_low), join_int32(pos_high, pos_low)
+
+    def set_native_limits(self, low: int, high: int) -> None:
+        """Set the software limits (pulses) and enable them; the int32 extremes disable them."""
+        (control,) = self._read(reg.PR_CONTROL_SETTING, 1)
+        if (low, high) == (reg.INT32_MIN, reg.INT32_MAX):
+            self._write(reg.PR_CONTROL_SETTING, [control & ~reg.SOFT_LIMIT_ENABLE & 0xFFFF])
+            return
+        self._write(reg.SOFT_LIMIT_POS_HIGH, [*split_int32(int(high)), *split_int32(int(low))])
+        self._write(reg.PR_CONTROL_SETTING, [control | reg.SOFT_LIMIT_ENABLE])
+
+    def native_range(self, low: float, high: float) -> tuple[int, int]:
+        """The pulse limits that keep the axis inside [low, high] (axis units), rounded inward."""
+        a, b = sorted(((low - self.offset) / self.scale, (high - self.offset) / self.scale))
+        return math.ceil(a - 1e-9), math.floor(b + 1e-9)
+
+    def power_token(self) -> int | None:
+        """No volatile register of these drives is known to tell a power cycle: None."""
+        return None
 
     def close(self) -> None:
         pass  # the bus owns the port

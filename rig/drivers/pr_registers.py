@@ -29,6 +29,18 @@ from __future__ import annotations
 
 PULSES_PER_REV = 0x0001  # Pr0.00 pulses per motor revolution [RS485 §4.3.1]
 
+# Software travel limits. ASSUMED from three open drivers that agree (none of the manual pages at
+# hand has the Pr8 table): Pr8.00 (0x6000) PR control setting, bit1 "software limit valid";
+# Pr8.06/Pr8.07 (0x6006/0x6007) positive limit and Pr8.08/Pr8.09 (0x6008/0x6009) negative limit,
+# int32 pulses, high word first. A path that would pass an enabled limit stops at it.
+PR_CONTROL_SETTING = 0x6000  # Pr8.00
+SOFT_LIMIT_ENABLE = 0x0002  # its bit1
+SOFT_LIMIT_POS_HIGH = 0x6006  # Pr8.06
+SOFT_LIMIT_POS_LOW = 0x6007
+SOFT_LIMIT_NEG_HIGH = 0x6008  # Pr8.08
+SOFT_LIMIT_NEG_LOW = 0x6009
+INT32_MIN, INT32_MAX = -(2**31), 2**31 - 1
+
 # Path 0, written in one function-16 request of PR0_LENGTH registers [CS2RS].
 PR0_MODE = 0x6200  # Pr9.00
 PR0_POS_HIGH = 0x6201  # Pr9.01 target, pulses, int32 high word first

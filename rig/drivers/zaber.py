@@ -9,11 +9,16 @@ device, in mm (or deg), converting native microsteps in one place.
 from __future__ import annotations
 
 import itertools
+import math
 
 from rig.drivers import zaber_ascii as za
 from rig.errors import DeviceRejected, DeviceTimeout, FramingError
 from rig.transport.serial_link import SerialLink
 from rig.types import AxisStatus, MotionState
+
+# A device-scope volatile setting (FW 7.23 and later) that holds the rig's power-up token: 0 after
+# the controller powers up (docs/hardware.md, "Zaber"; ASSUMED volatile, as Zaber's examples use it).
+POWER_TOKEN_SETTING = "user.vdata.0"
 
 
 class ZaberChain:
@@ -149,6 +154,39 @@ class ZaberAxis:
 
     def clear_warnings(self) -> None:
         self._cmd("warnings clear")
+
+    # -- the controller's own travel limits and a power-up token (rig/device_floor.py) ----------
+    def _get_int(self, setting: str) -> int:
+        reply = self._cmd(f"get {setting}")
+        try:
+            return int(reply.data)
+        except ValueError as exc:
+            raise FramingError(self.label, f"get {setting}", reply.raw, f"{setting} is not an integer") from exc
+
+    def native_limits(self) -> tuple[int, int]:
+        """The controller's limit.min and limit.max (microsteps)."""
+        return self._get_int("limit.min"), self._get_int("limit.max")
+
+    def set_native_limits(self, low: int, high: int) -> None:
+        """Set limit.min and limit.max (microsteps); the caller reads them back."""
+        self._cmd(f"set limit.min {int(low)}")
+        self._cmd(f"set limit.max {int(high)}")
+
+    def native_range(self, low: float, high: float) -> tuple[int, int]:
+        """The microstep limits that keep the axis inside [low, high] (axis units), rounded inward."""
+        a, b = sorted(((low - self.offset) / self.scale, (high - self.offset) / self.scale))
+        return math.ceil(a - 1e-9), math.floor(b + 1e-9)
+
+    def power_token(self) -> int | None:
+        """The token the rig left in the controller's volatile user.vdata.0 (0 after a power-up);
+        None where the firmware has no such setting (before 7.23)."""
+        try:
+            return int(self.chain.command(self.device, 0, f"get {POWER_TOKEN_SETTING}", name=self.label).data)
+        except (DeviceRejected, ValueError):
+            return None
+
+    def set_power_token(self, token: int) -> None:
+        self.chain.command(self.device, 0, f"set {POWER_TOKEN_SETTING} {int(token)}", name=self.label)
 
     def close(self) -> None:
         pass  # the chain owns the port

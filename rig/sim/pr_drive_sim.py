@@ -45,6 +45,11 @@ class PrDriveSim:
             reg.PR0_TRIGGER: 0,
             reg.PR_CONTROL: 0,  # ASSUMED: a read returns the last command written
             reg.JOG: 0,
+            reg.PR_CONTROL_SETTING: 0,  # software limits disabled
+            reg.SOFT_LIMIT_POS_HIGH: 0,
+            reg.SOFT_LIMIT_POS_LOW: 0,
+            reg.SOFT_LIMIT_NEG_HIGH: 0,
+            reg.SOFT_LIMIT_NEG_LOW: 0,
         }
         self.zero_pulses = 0  # set by CTRL_SET_ZERO: command position 0 here
         self.homed_since_power_up = stage.homed
@@ -119,6 +124,7 @@ class PrDriveSim:
             if rpm == 0:
                 return  # ASSUMED: a 0 rpm path ends where it starts (the manual's own example sends 0)
             speed = rpm / 60.0 * self.travel_per_rev
+            target_pulses = self._inside_soft_limits(target_pulses)
             try:
                 self.stage.move_to((target_pulses + self.zero_pulses) * self.pulse, speed, now_s)
             except StageFault as exc:
@@ -132,6 +138,23 @@ class PrDriveSim:
             self.stage.stop(now_s, abrupt=True)
         elif value != 0:
             raise ModbusException(ILLEGAL_DATA_VALUE)
+
+    def soft_limits(self) -> tuple[int, int] | None:
+        """(negative, positive) software limits in pulses when enabled (registers ASSUMED)."""
+        if not self.regs[reg.PR_CONTROL_SETTING] & reg.SOFT_LIMIT_ENABLE:
+            return None
+        r = self.regs
+        return (
+            join_int32(r[reg.SOFT_LIMIT_NEG_HIGH], r[reg.SOFT_LIMIT_NEG_LOW]),
+            join_int32(r[reg.SOFT_LIMIT_POS_HIGH], r[reg.SOFT_LIMIT_POS_LOW]),
+        )
+
+    def _inside_soft_limits(self, target_pulses: int) -> int:
+        """A path that would pass an enabled software limit stops at it (ASSUMED, pr_registers.py)."""
+        limits = self.soft_limits()
+        if limits is None:
+            return target_pulses
+        return min(max(target_pulses, limits[0]), limits[1])
 
 
 def krpm_ramp(ms_per_krpm: float, travel_per_rev: float) -> float:

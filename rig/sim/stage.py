@@ -71,6 +71,7 @@ class SimStage:
         self._pos = position
         self._move: Profile | None = None
         self.homed = homed
+        self.commanded_speed: float | None = None  # the speed of the latest move command
         self._homing = False
         self.stalled = False
         self.lock = threading.RLock()
@@ -126,6 +127,12 @@ class SimStage:
             self._settle(t_s)
             return self._move.velocity(t_s) if self._move is not None else 0.0
 
+    @property
+    def target(self) -> float | None:
+        """Where the move under way ends (a stop's end while braking); None at rest."""
+        with self.lock:
+            return None if self._move is None else self._move.end
+
     def busy(self, t_s: float) -> bool:
         """True until the stage is at rest (a stop's reaction and ramp included)."""
         with self.lock:
@@ -148,6 +155,7 @@ class SimStage:
             here = self._move.position(t_s) if self._move is not None else self._pos
             v0 = self._move.velocity(t_s) if self._move is not None else 0.0
             v_max = min(speed, spec.max_speed)
+            self.commanded_speed = speed
             self._move = move_profile(here, v0, target, v_max, spec.accel, spec.move_decel, t_s)
             self._homing = False
 

@@ -37,7 +37,25 @@ ESTOP_ACCEL_NATIVE = 32767
 REACTION_S = 0.001
 # Settings that belong to the device, not to an axis: asking them of axis 1 is
 # rejected DEVICEONLY (manual, "Reply Format", rejection reasons).
-DEVICE_SETTINGS = ("deviceid", "system.serial", "version", "version.build", "comm.packet.size.max", "system.axiscount")
+USER_VDATA = tuple(f"user.vdata.{i}" for i in range(4))  # FW 7.23+: device-scope integers (see below)
+DEVICE_SETTINGS = (
+    "deviceid",
+    "system.serial",
+    "version",
+    "version.build",
+    "comm.packet.size.max",
+    "system.axiscount",
+    *USER_VDATA,
+)
+# Travel limits (ASCII settings limit.min / limit.max, native microsteps; Zaber's Set Minimum /
+# Maximum Position pages for FW6, whose rules these are): a move abs or rel whose target lies
+# outside them is rejected BADDATA; a velocity move stops at them; `move min` / `move max` go to
+# them. A limit that leaves the carriage outside is accepted; a move back to a target inside is
+# then the only one taken. They are kept over a power cycle (the device stores them). ASSUMED (no
+# page at hand says): a move under way whose target a new limit excludes is cut short at it,
+# as a velocity move is.
+# user.vdata.0-3 (FW 7.23+, device scope, 64-bit): ASSUMED volatile, 0 at power-up, as Zaber's
+# own example uses them for temporary storage; the rig writes a token there to tell a power cycle.
 
 
 @dataclass
@@ -54,9 +72,35 @@ class ZaberDeviceSim:
     resolution: int = 64
     packet_size_max: int = 80  # longest command line accepted (manual, comm.packet.size.max)
     pos_offset: float = 0.0  # stage position at native 0; `set pos` moves it, homing clears it
+    limit_min: int | None = None  # limit.min, native; None: the travel's own end
+    limit_max: int | None = None
+    vdata: list[int] | None = None  # user.vdata.0-3, volatile
 
     def __post_init__(self):
         self.apply_ramps()
+        if self.vdata is None:
+            self.vdata = [0, 0, 0, 0]
+
+    def power_cycle(self) -> None:
+        """Fault injection: the controller loses power and comes back (volatile settings cleared,
+        the stored ones kept, the position no longer referenced)."""
+        self.vdata = [0, 0, 0, 0]
+        self.stage.homed = False
+
+    def native_limits(self) -> tuple[int, int]:
+        """(limit.min, limit.max) in native microsteps: as set, else the stage's travel."""
+        ends = sorted((self.to_native(self.stage.spec.travel[0]), self.to_native(self.stage.spec.travel[1])))
+        return (
+            ends[0] if self.limit_min is None else self.limit_min,
+            ends[1] if self.limit_max is None else self.limit_max,
+        )
+
+    def stage_range(self) -> tuple[float, float]:
+        """The limits as stage positions, inside the travel."""
+        lo, hi = self.native_limits()
+        a, b = sorted((self.pos_offset + lo * self.microstep, self.pos_offset + hi * self.microstep))
+        travel = self.stage.spec.travel
+        return max(a, travel[0]), min(b, travel[1])
 
     # native units, in one place
     def to_native(self, position: float) -> int:
@@ -172,14 +216,10 @@ class ZaberChainSim(RequestReplyDevice):
             return self._move(dev, words[1:], now_s)
         return False, "BADCOMMAND"
 
-    def _limits(self, dev: ZaberDeviceSim) -> tuple[int, int]:
-        lo, hi = dev.stage.spec.travel
-        return dev.to_native(lo), dev.to_native(hi)
-
     def _get(self, dev: ZaberDeviceSim, axis: int, name: str, now_s: float) -> tuple[bool, str]:
         if name in DEVICE_SETTINGS and axis != 0:
             return False, "DEVICEONLY"
-        lo, hi = self._limits(dev)
+        lo, hi = dev.native_limits()
         values = {
             "deviceid": dev.device_id,
             "system.serial": dev.serial,
@@ -195,6 +235,7 @@ class ZaberChainSim(RequestReplyDevice):
             "motion.decelonly": dev.decel,
             "limit.min": lo,
             "limit.max": hi,
+            **dict(zip(USER_VDATA, dev.vdata or [0, 0, 0, 0])),
         }
         if name not in values:
             # Also what an integrated device answers for peripheralid / peripheral.id
@@ -203,12 +244,27 @@ class ZaberChainSim(RequestReplyDevice):
         return True, str(values[name])
 
     def _set(self, dev: ZaberDeviceSim, axis: int, name: str, text: str, now_s: float) -> tuple[bool, str]:
-        if name not in ("maxspeed", "accel", "motion.accelonly", "motion.decelonly", "pos"):
+        settable = ("maxspeed", "accel", "motion.accelonly", "motion.decelonly", "pos", "limit.min", "limit.max")
+        if name not in settable and name not in USER_VDATA:
             return False, "BADCOMMAND"
+        if name in USER_VDATA and axis != 0:
+            return False, "DEVICEONLY"
         try:
             value = int(text)
         except ValueError:
             return False, "BADDATA"
+        if name in USER_VDATA:
+            if not -(2**63) <= value < 2**63:
+                return False, "BADDATA"
+            assert dev.vdata is not None
+            dev.vdata[USER_VDATA.index(name)] = value
+            return True, "0"
+        if name in ("limit.min", "limit.max"):
+            if not -1_000_000_000 <= value <= 1_000_000_000:
+                return False, "BADDATA"
+            setattr(dev, name.replace(".", "_"), value)
+            self._keep_inside(dev, now_s)
+            return True, "0"
         if name == "pos":
             # Re-reference without moving: the carriage stays, its number changes.
             dev.pos_offset = dev.stage.position(now_s) - value * dev.microstep
@@ -225,8 +281,22 @@ class ZaberChainSim(RequestReplyDevice):
         dev.apply_ramps()
         return True, "0"
 
+    def _keep_inside(self, dev: ZaberDeviceSim, now_s: float) -> None:
+        """A move under way whose target a new limit excludes stops at the limit (ASSUMED)."""
+        stage = dev.stage
+        if not stage.busy(now_s):
+            return
+        lo, hi = dev.stage_range()
+        target = stage.target
+        if target is None or lo - 1e-12 <= target <= hi + 1e-12:
+            return
+        here = stage.position(now_s)
+        edge = lo if target < lo else hi
+        if (edge - here) * (target - here) > 0:  # still between here and the target: stop there
+            stage.move_to(edge, stage.commanded_speed or stage.spec.max_speed, now_s)
+
     def _move(self, dev: ZaberDeviceSim, args: list[str], now_s: float) -> tuple[bool, str]:
-        lo, hi = dev.stage.spec.travel
+        lo, hi = dev.stage_range()
         if args in (["min"], ["max"]):
             target, speed = (lo if args == ["min"] else hi), dev.speed(dev.maxspeed)
         elif len(args) == 2 and args[0] in ("abs", "rel", "vel"):
@@ -238,6 +308,9 @@ class ZaberChainSim(RequestReplyDevice):
                 if value == 0:
                     dev.stage.stop(now_s)
                     return True, "0"
+                here = dev.stage.position(now_s)
+                if (value > 0 and here >= hi - 1e-12) or (value < 0 and here <= lo + 1e-12):
+                    return False, "BADDATA"  # at or past the limit it would run into (ASSUMED reply)
                 # A velocity move runs until stopped or until the travel limit.
                 target, speed = (hi if value > 0 else lo), dev.speed(value)
             else:
@@ -246,6 +319,8 @@ class ZaberChainSim(RequestReplyDevice):
                 speed = dev.speed(dev.maxspeed)
         else:
             return False, "BADCOMMAND"
+        if not lo - 1e-12 <= target <= hi + 1e-12:
+            return False, "BADDATA"  # a target outside the limits (a carriage outside comes back by one inside)
         try:
             dev.stage.move_to(target, speed, now_s)
         except StageFault:
