@@ -23,6 +23,7 @@ from typing import Callable
 import numpy as np
 
 from acquisition import schema as S
+from acquisition.resume_plan import Restart, superseder
 from acquisition.run_file import RunFileError, RunHeader, RunWriter
 from protocols.plan import AXES, PHASES, Plan
 from rig.envelope import DepthGuard
@@ -317,20 +318,28 @@ class Acquisition:
         lock = None if resume else RunWriter.claim(path)  # a second writer is refused before anything moves
         k0 = 0
         self._t_offset_s = 0.0
+        self._restart: Restart | None = None
         if resume:
-            writer = RunWriter.reopen(path)
-            recorded = str(writer.header_attr(S.ATTR_PROTOCOL))
-            if recorded != proto.text and not _same_protocol(recorded, proto, path):
-                writer.close()
-                raise RunFileError(
-                    f"{path}: was recorded with a different protocol (another setting than now); "
-                    "resume needs the same settings"
-                )
-            last_t = writer.last_t_frame_s
-            if last_t is not None:  # this process's clock starts anew: keep t_frame_s increasing (docs/run-file.md)
-                self._t_offset_s = last_t + 1.0 / proto.capture_hz - self.clock.now()
+            # back to the start of the level the interruption broke (acquisition/resume_plan.py): its
+            # frames move to superseded/, the same protocol checked before anything in the file changes
+            found: dict = {}
+            writer = RunWriter.reopen(path, superseder(plan, path, _same_protocol, found, _stop_reason(path)))
+            self._restart = found.get("restart")
+            last = [t for t in (writer.last_t_frame_s, writer.last_stream_t_s) if t is not None]
+            if last:  # this process's clock starts anew: time goes on after all the file holds (docs/run-file.md)
+                self._t_offset_s = max(last) + 1.0 / proto.capture_hz - self.clock.now()
             done = writer.capture_indices
             k0 = int(done[-1]) + 1 if len(done) else 0
+            if self._restart is not None and self._restart.retaken:
+                log.warning(
+                    "%s: level %d is taken again from capture %d (%d frame(s) moved to %s/retake-%d)",
+                    path,
+                    self._restart.level,
+                    self._restart.k,
+                    self._restart.retaken,
+                    S.SUPERSEDED,
+                    writer.retake,
+                )
             if k0 >= plan.frame_count:
                 writer.set_status("complete", "")
                 writer.close()
@@ -348,7 +357,9 @@ class Acquisition:
         )
         try:
             with motion as self._session:
-                start_pose = plan.pose_at(plan.capture_time(k0)) if k0 else plan.steps[0].start
+                start_pose = plan.steps[0].start
+                if k0:  # a resume starts over at the interrupted level's first step (resume_plan.py)
+                    start_pose = self._restart.step.start if self._restart else plan.pose_at(plan.capture_time(k0))
                 self._go_to_start((start_pose[0], start_pose[1], proto.approach_mm, start_pose[3]))
                 self.rig.tare(50)
                 self._stream_start(writer)
@@ -445,12 +456,14 @@ class Acquisition:
         n_frames = plan.frame_count
         t_k0 = plan.capture_time(k0)
         current, into = plan.locate(t_k0)
+        if k0 and self._restart is not None:  # the interrupted level from its first step, at its start
+            current, t_k0 = self._restart.step, self._restart.t_s
         i_step = steps.index(current)
         if k0 == 0:
             # the approach is vertical: z alone, so that it runs fast to the gel and slows for the last part
             m.move({"z": self._abs(plan.steps[0].end)["z"]}, plan.steps[0].speeds.get("z", proto.approach_speed_mm_s))
-        else:  # back to where the interrupted run was, at protocol speed for the last part
-            here = current.pose_at(into)
+        else:  # back to the gel, then pressed along the protocol's vertical path to where the level starts
+            here = current.start if self._restart is not None else current.pose_at(into)
             m.move({"z": self.origin["z"]}, proto.approach_speed_mm_s)
             m.move(
                 self._abs(here),
@@ -520,6 +533,8 @@ class Acquisition:
                 S.STEP_INDEX: step.index,
                 S.PHASE_INDEX: writer.phase_index(step.phase),  # the file's own list: a resumed file keeps its order
                 S.LEVEL: step.level,
+                # recorded again by this resume (its level re-done): which resume; 0 for a first take
+                S.RETAKE: writer.retake if self._restart is not None and k < self._restart.k_before else 0,
             },
         )
         result.skews_s.append(skew)
@@ -537,6 +552,18 @@ class Acquisition:
                     skew,
                 )
             )
+
+
+def _stop_reason(path: Path) -> str:
+    """How the run at ``path`` stopped, as its file says ("" when it cannot be read: resume refuses it)."""
+    from acquisition.run_reader import open_for_reading
+
+    try:
+        with open_for_reading(path) as f:
+            raw = f[S.STATUS_REASON][()] if S.STATUS_REASON in f else b""
+    except (RunFileError, OSError, RuntimeError, KeyError):
+        return ""
+    return raw.decode("utf-8", "replace") if isinstance(raw, bytes) else str(raw)
 
 
 def _same_protocol(recorded_text: str, proto, path) -> bool:

@@ -84,7 +84,7 @@ def row_count_findings(f: h5py.File, sound: set[str], n: int, status: str) -> li
     """Every per-frame dataset has a row for each frame; once the run is closed (any status but
     ``running``: the writer trims its row blocks to the frames), exactly one."""
     findings = []
-    for fl in S.PER_FRAME_FIELDS:
+    for fl in (*S.PER_FRAME_FIELDS, S.FIELD[S.FRAME_DIGEST]):
         if fl.path not in sound:
             continue
         rows = f[fl.path].shape[0]

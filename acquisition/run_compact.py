@@ -24,6 +24,8 @@ import h5py
 import numpy as np
 
 from acquisition import schema as S
+from acquisition.frame_checks import check_frames
+from acquisition.frame_identity import FRAME_DIGEST_BYTES, frame_digest, key_of, row_bytes, stored_chunk
 from acquisition.hdf5_open import check_complete
 from acquisition.run_reader import RunReader
 from acquisition.run_storage import (
@@ -70,6 +72,8 @@ def _copy(src: h5py.File, dst: h5py.File, frame=None) -> None:
         if isinstance(obj, h5py.Group):
             dst.require_group(name).attrs.update(dict(obj.attrs))
             return
+        if name == S.FRAME_DIGEST:
+            return  # bound to the stored chunks, which the copy stores anew: recomputed below
         if name == S.FRAMES:
             n, *shape = obj.shape
             d = dst.create_dataset(
@@ -97,6 +101,23 @@ def _copy(src: h5py.File, dst: h5py.File, frame=None) -> None:
         d.attrs.update(dict(obj.attrs))
 
     src.visititems(visit)
+    if S.FRAME_DIGEST in src:
+        _redigest(dst)
+
+
+def _redigest(dst: h5py.File) -> None:
+    """The copy's frame digests, of its own stored chunks (acquisition/frame_identity.py)."""
+    key = key_of(dst)
+    n = dst[S.FRAMES].shape[0]
+    rows = {fl.path: dst[fl.path][:n] for fl in S.PER_FRAME_FIELDS if fl.path in dst}
+    digests = np.zeros((n, FRAME_DIGEST_BYTES), dtype=np.uint8)
+    if key is not None:
+        for i in range(n):
+            chunk = stored_chunk(dst[S.FRAMES], i)
+            digests[i] = frame_digest(key, i, chunk, row_bytes({k: v[i] for k, v in rows.items()}))
+    dst.create_dataset(
+        S.FRAME_DIGEST, data=digests, maxshape=(None, FRAME_DIGEST_BYTES), **chunked((ROW_BLOCK, FRAME_DIGEST_BYTES))
+    )
 
 
 def _same(a, b) -> bool:
@@ -113,6 +134,7 @@ def _verify(src: h5py.File, copy: h5py.File) -> str:
             return f"attribute {key} differs"
     names: list[str] = []
     src.visit(names.append)
+    names.sort(key=lambda name: name == S.FRAME_DIGEST)  # the digests last: a changed frame is named as such
     for name in names:
         a, b = src[name], copy.get(name)
         if isinstance(a, h5py.Group):
@@ -123,6 +145,12 @@ def _verify(src: h5py.File, copy: h5py.File) -> str:
             for i in range(a.shape[0]):
                 if not np.array_equal(a[i], b[i]):
                     return f"{name}[{i}] differs"
+        elif name == S.FRAME_DIGEST:  # of the copy's own chunks: checked against them instead
+            rows = {fl.path: copy[fl.path][: a.shape[0]] for fl in S.PER_FRAME_FIELDS if fl.path in copy}
+            bad = check_frames(copy, rows, a.shape[0]).findings()
+            if bad:
+                return bad[0]
+            continue
         elif not _same(a[()], b[()]):
             return f"{name} differs"
         if dict(a.attrs).keys() != dict(b.attrs).keys() or not all(_same(a.attrs[k], b.attrs[k]) for k in a.attrs):

@@ -15,12 +15,15 @@ that ``dataset validate`` would refuse for its form or content (acquisition/run_
   within the file's own list, levels not negative; the full-rate stream finite and never going
   back in time; the object image and the reference frame readable.
 
-Frames are verified as they are read (``frame``: HDF5 checks the chunk's checksum; a chunk never
-written is refused, not read as zeros: what ``merge``, ``export`` and ``compact`` rely on, reading
-each frame once), or all at once without decoding (``verify_frames``: acquisition/chunk_checksum.py),
-as ``dataset split`` and a split's identity check of a file written since do. What the reader
-leaves to ``dataset validate`` are its judgements: black, constant or saturated frames, wrench–frame
-skew beyond a threshold, and whether a run completed (``split`` asks that itself).
+* the frames, every one, when the file is opened, without decoding them (acquisition/frame_checks.py):
+  each chunk present, as written (its Fletcher-32 checksum) and in its place (its identity digest,
+  bound to its index, its row and the run: acquisition/frame_identity.py), so a zeroed page, a
+  swapped or a foreign chunk is refused by every reader; a run still being written serves the frames
+  committed so far. The full-rate stream's rows against their digests too.
+
+Frames are also checked as they are read (``frame``: HDF5 checks the chunk's checksum). What the
+reader leaves to ``dataset validate`` are its judgements: black, constant or saturated frames,
+wrench–frame skew beyond a threshold, and whether a run completed (``split`` asks that itself).
 """
 
 from __future__ import annotations
@@ -32,7 +35,8 @@ import numpy as np
 
 from acquisition import attr_checksum
 from acquisition import schema as S
-from acquisition.chunk_checksum import ChunkIndexError, bad_chunks
+from acquisition.chunk_checksum import ChunkIndexError
+from acquisition.frame_checks import check_frames, stream_findings
 from acquisition.hdf5_open import check_complete, open_swmr_read
 from acquisition.run_checks import (
     checksum_findings,
@@ -101,6 +105,7 @@ class RunReader:
         self.status = self.reason = ""
         self.notes: list[str] = []
         self._stream: np.ndarray | None = None
+        self._frames_verified = False
 
     # -- opening ------------------------------------------------------------------------
     @classmethod
@@ -151,9 +156,41 @@ class RunReader:
         problems += row_findings(self.rows, self.n, len(self.phases))
         if S.WRENCH_STREAM in sound:
             self._stream, found = read_stream(f, S.WRENCH_STREAM)
-            problems += found
+            problems += found or stream_findings(f, self._stream)
         self.images, found = image_findings(f, sound)
-        return problems + found
+        problems += found
+        if not problems:
+            problems += self._verify_frames()
+        return problems
+
+    def _verify_frames(self) -> list[str]:
+        """Every frame chunk present, as written and in its place (acquisition/frame_checks.py), read once
+        when the run is opened. A run still being written (or whose writer crashed) may end in frames
+        not yet committed: those are left out, with a note; damage before them is refused."""
+        try:
+            check = check_frames(self.f, self.rows, self.n)
+        except ChunkIndexError as exc:  # no frame can be located: one line for the dataset
+            return [f"{S.FRAMES}: {exc}; the file is damaged"]
+        self._frames_verified = True
+        if not check.bad:
+            return []
+        tail = check.tail_from(self.n)
+        if self.status == "running" and min(check.bad) >= tail:
+            self.notes.append(
+                f"frames {tail}..{self.n - 1} not committed yet (being written, or its writer stopped): left out; "
+                "`rig run-protocol --resume` keeps the frames that reached the disk"
+            )
+            self.n = tail
+            self.rows = {name: values[:tail] for name, values in self.rows.items()}
+            return []
+        why = (
+            "the run is still running or its writer crashed: `rig run-protocol --resume` keeps the frames that "
+            "reached the disk"
+            if self.status == "running"
+            else "the file is damaged"
+        )
+        findings = check.findings()
+        return [f"{findings[0]}; {why}", *findings[1:]]
 
     # -- what it holds ------------------------------------------------------------------
     @property
@@ -209,29 +246,19 @@ class RunReader:
             ) from None
 
     def frame_problems(self, upto: int | None = None) -> list[str]:
-        """Every frame chunk of frames 0..upto-1 (default: all) checked against its checksum without
-        decoding it: the problems, one line each naming the frame (empty when sound)."""
-        d = self.f[S.FRAMES]
+        """Every frame chunk of frames 0..upto-1 (default: all) checked again without decoding it:
+        present, its checksum, its identity digest; the problems, one line per kind (empty when sound)."""
         upto = self.n if upto is None else upto
-        if d.chunks is None:  # contiguous frames (never written so): read them through HDF5
-            return self._contiguous_problems(upto) if upto else []
         try:
-            return [
-                f"{S.FRAMES}[{lo}]: {problem}" if lo == hi else f"{S.FRAMES}[{lo}:{hi + 1}]: {problem}"
-                for lo, hi, problem in bad_chunks(d, upto)
-            ]
+            return check_frames(self.f, {k: v[:upto] for k, v in self.rows.items()}, upto).findings()
         except ChunkIndexError as exc:  # no frame can be located: one line for the dataset
             return [f"{S.FRAMES}: {exc}"]
 
-    def _contiguous_problems(self, upto: int) -> list[str]:
-        try:
-            self.f[S.FRAMES][:upto]
-        except (OSError, RuntimeError) as exc:
-            return [f"{S.FRAMES}: unreadable ({first_line(exc)})"]
-        return []
-
     def verify_frames(self) -> None:
-        """``frame_problems`` as a RunFileError (one line naming the first damaged frame)."""
+        """Every frame verified (``frame_problems``), as a RunFileError naming the first damaged frame;
+        nothing to do when ``open`` verified them (it does, unless the file was too damaged to try)."""
+        if self._frames_verified:
+            return
         problems = self.frame_problems()
         if problems:
             why = (

@@ -25,6 +25,7 @@ retry a damaged piece of metadata without end: nothing it reads there is unverif
 
 from __future__ import annotations
 
+import datetime as dt
 import logging
 from pathlib import Path
 
@@ -34,6 +35,8 @@ from acquisition import attr_checksum
 from acquisition import schema as S
 from acquisition.chunk_checksum import ChunkIndexError
 from acquisition.crash_tail import frames_kept, stream_kept
+from acquisition.frame_checks import check_frames
+from acquisition.frame_identity import stream_wrong
 from acquisition.hdf5_open import check_complete, open_append, open_swmr_read
 from acquisition.run_checks import (
     checksum_findings,
@@ -46,17 +49,23 @@ from acquisition.run_checks import (
     status_findings,
 )
 from acquisition.run_layout import decode_phases, layout_problems
-from acquisition.run_storage import recover, remove_stale_temps
+from acquisition.run_storage import chunked, frames_codec, recover, remove_stale_temps
 from acquisition.writer_lock import RunFileError, WriterLock
 
 log = logging.getLogger("acquisition")
 
 
-def reopen(path: str | Path, writer_type):
+def reopen(path: str | Path, writer_type, supersede=None):
     """The run at ``path`` open for appending as a ``writer_type`` (acquisition/run_writer.py's
     RunWriter, which calls this from ``RunWriter.reopen``; passed in so that the writer's module
     and this one do not import each other). RunLocked while another process writes it;
-    RunFileError naming the file, dataset and frame when it is not sound (module docstring)."""
+    RunFileError naming the file, dataset and frame when it is not sound (module docstring).
+
+    ``supersede(frames, attrs) -> (keep, why)``: given the frames the file keeps and its root attributes
+    (verified; the caller may refuse the file here, before anything changes), how many stay (the
+    rest were taken by a level the resume re-does: acquisition/executor.py) and why. Those after
+    ``keep`` are moved into ``superseded/retake-N`` (frames, rows and digests, with ``why``) before
+    the file is opened for appending, and the writer's ``retake`` is N (0 when none moved)."""
     path = Path(path)
     lock = WriterLock.acquire(path)
     try:
@@ -69,13 +78,20 @@ def reopen(path: str | Path, writer_type):
         problem = check_complete(path)
         if problem:
             raise RunFileError(f"{path}: {problem}; cannot resume it")
-        frames, stream_rows = _committed(path)
+        frames, stream_rows, attrs = _committed(path)
+        keep, why = supersede(frames, attrs) if supersede is not None else (frames, "")
         f = _open_for_append(path)
         try:
+            retake = 0
+            if keep < frames:  # before SWMR mode, which forbids new groups and datasets
+                retake = _move_superseded(f, keep, frames, why)
+                frames = keep
             f.swmr_mode = True
             writer = writer_type(f, path, lock)
+            writer.retake = retake
             writer.n, writer._stream_n = frames, stream_rows
             writer._truncate_to(frames)
+            writer.set_status("running", "")  # being written again: readers treat its end as uncommitted
         except BaseException:
             f.close()
             raise
@@ -85,19 +101,43 @@ def reopen(path: str | Path, writer_type):
         raise
 
 
+def _move_superseded(f: h5py.File, lo: int, hi: int, why: str) -> int:
+    """Frames ``lo``..``hi``-1 with their rows and digests copied into a new ``superseded/retake-N``
+    group (kept, checksummed, compressed as the frames are), which says why; returns N. The caller
+    then shrinks the run's own datasets to ``lo``."""
+    group = f.require_group(S.SUPERSEDED)
+    number = len(group) + 1
+    g = group.create_group(f"retake-{number}")
+    g.attrs["first_capture_index"] = lo
+    g.attrs["frames"] = hi - lo
+    g.attrs["why"] = why
+    g.attrs["superseded_utc"] = dt.datetime.now(dt.timezone.utc).isoformat(timespec="seconds")
+    frames = f[S.FRAMES]
+    shape = frames.shape[1:]
+    copy = g.create_dataset(
+        S.FRAMES, (hi - lo, *shape), dtype=frames.dtype, **chunked((1, *shape), codec=frames_codec(f))
+    )
+    for i in range(lo, hi):  # one frame at a time: a level holds hundreds
+        copy[i - lo] = frames[i]
+    for name in [fl.path for fl in S.PER_FRAME_FIELDS] + [S.FRAME_DIGEST]:
+        if name in f:
+            g.create_dataset(name, data=f[name][lo:hi], fletcher32=True)
+    return number
+
+
 def _refuse(path: Path, problem: str) -> RunFileError:
     return RunFileError(f"{path}: {problem}; the file is damaged, cannot resume it")
 
 
-def _committed(path: Path) -> tuple[int, int]:
-    """(frames, stream rows) the file keeps, verified read-only (module docstring)."""
+def _committed(path: Path) -> tuple[int, int, dict]:
+    """(frames, stream rows, root attributes) the file keeps, verified read-only (module docstring)."""
     try:
         f = open_swmr_read(path)
     except (OSError, RuntimeError, KeyError) as exc:
         raise RunFileError(f"{path}: cannot open for appending: {first_line(exc)}") from None
     with f:
         try:
-            return _verify(path, f)
+            return (*_verify(path, f), dict(f.attrs))
         except ChunkIndexError as exc:  # a dataset whose chunks cannot be located
             raise _refuse(path, str(exc)) from None
         except (OSError, RuntimeError, KeyError, ValueError) as exc:  # damage beyond what the checks expect
@@ -125,6 +165,12 @@ def _verify(path: Path, f: h5py.File) -> tuple[int, int]:
         raise _refuse(path, problems[0])
     try:
         kept, problem = frames_kept(frames, n, crashed)
+        if not problem:  # each frame in its place too (acquisition/frame_identity.py): the same tail rule
+            check = check_frames(f, rows, kept)
+            tail = check.tail_from(kept)
+            if check.bad and (min(check.bad) < tail or not crashed):
+                problem = check.findings()[0]
+            kept = tail
     except ChunkIndexError as exc:
         raise _refuse(path, f"{S.FRAMES}: {exc}") from None
     if problem:
@@ -148,6 +194,13 @@ def _stream_rows(path: Path, f: h5py.File, crashed: bool) -> int:
         raise _refuse(path, f"{S.WRENCH_STREAM}: {exc}") from None
     if problem:
         raise _refuse(path, problem)
+    wrong = stream_wrong(f, d[:kept]) if kept else []
+    if wrong:
+        if not crashed or wrong != list(range(wrong[0], kept)):
+            raise _refuse(
+                path, f"{S.WRENCH_STREAM}[{wrong[0]}]: not the row written at this index (its digest differs)"
+            )
+        kept = wrong[0]  # rows whose digests never reached the disk: a crashed writer's tail
     if kept < d.shape[0]:
         log.warning("%s: %s rows %d.. never reached the disk; dropped", path, S.WRENCH_STREAM, kept)
     return kept

@@ -32,6 +32,15 @@ import numpy as np
 
 from acquisition import schema as S
 from acquisition.attr_checksum import seal
+from acquisition.frame_identity import (
+    FRAME_DIGEST_BYTES,
+    frame_digest,
+    key_of,
+    new_run_id,
+    row_bytes,
+    stored_chunk,
+    stream_digests,
+)
 from acquisition.run_checks import first_line as _first_line
 from acquisition.run_layout import decode_phases
 from acquisition.run_storage import ROW_BLOCK, STREAM_BLOCK, chunked, fsync_path, remove_stale_temps, temp_path
@@ -70,6 +79,7 @@ def write_attributes(f: h5py.File, header: RunHeader) -> None:
     their checksum (acquisition/attr_checksum.py)."""
     a = f.attrs
     a[S.ATTR_SCHEMA] = S.SCHEMA_VERSION
+    a[S.ATTR_RUN_ID] = new_run_id()  # the key of its frame and stream digests (acquisition/frame_identity.py)
     a[S.ATTR_SOFTWARE] = __version__
     a[S.ATTR_CREATED] = dt.datetime.now(dt.timezone.utc).isoformat(timespec="seconds")
     a[S.ATTR_PROTOCOL_NAME] = header.protocol_name
@@ -118,6 +128,14 @@ def _write_header(
             field.path, (0, *width), maxshape=(None, *width), dtype=field.dtype, **chunked((STREAM_BLOCK, *width))
         )
         d.attrs["units"] = field.units
+    f.create_dataset(
+        S.FRAME_DIGEST,
+        (0, FRAME_DIGEST_BYTES),
+        maxshape=(None, FRAME_DIGEST_BYTES),
+        dtype="u1",
+        **chunked((ROW_BLOCK, FRAME_DIGEST_BYTES)),
+    )
+    f.create_dataset(S.STREAM_DIGEST, (0,), maxshape=(None,), dtype="u8", **chunked((STREAM_BLOCK,)))
     for name, image in ((S.OBJECT_IMAGE, object_image), (S.REFERENCE_FRAME, reference_frame)):
         image = np.ascontiguousarray(image, dtype=np.uint8)  # one checksummed chunk: a flipped byte fails its read
         f.create_dataset(name, data=image, chunks=image.shape, fletcher32=True)
@@ -138,13 +156,23 @@ class RunWriter:
         self._frame_memory = h5py.h5s.create_simple((1, *self._frame_shape))  # one frame, as written
         # the fields this file has: an older file lacks the optional ones added since
         self._rows = {fl.path: f[fl.path] for fl in S.PER_FRAME_FIELDS if fl.path in f}
-        self._rows_len = min(d.shape[0] for d in self._rows.values())
         self._stream = f.get(S.WRENCH_STREAM)
         self._stream_n = self._stream.shape[0] if self._stream is not None else 0  # rows counted
+        # frame identity (acquisition/frame_identity.py): a file written before it has no digests to extend
+        self._key = key_of(f)
+        self._digests = f.get(S.FRAME_DIGEST) if self._key else None
+        self._stream_digests = f.get(S.STREAM_DIGEST) if self._key and self._stream is not None else None
+        self._rows_len = min(d.shape[0] for d in self._grown_with_rows())
         self.phases = decode_phases(f)
         self._row_spaces: dict[str, tuple] = {}  # per row dataset: (memory space, file space) of one row
         self._stream_layout: tuple[tuple[int, ...], np.dtype] | None = None  # the stream's row shape and dtype
         self._failure = ""  # set when a write failed: the file is closed with it as its reason
+        self._tampered = False  # changed by another process: closed without reading it again
+        self.retake = 0  # a resume that re-does a level: its number (superseded/retake-N), else 0
+        # what the file is on disk, so that a change by another process is noticed (``_check_file``)
+        st = os.stat(path)
+        self._file_id = (st.st_dev, st.st_ino)
+        self._size = st.st_size
 
     @classmethod
     def claim(cls, path: str | Path) -> WriterLock:
@@ -203,24 +231,30 @@ class RunWriter:
             raise
 
     @classmethod
-    def reopen(cls, path: str | Path) -> "RunWriter":
+    def reopen(cls, path: str | Path, supersede=None) -> "RunWriter":
         """Open a run to append to it (``--resume``), every committed chunk verified first:
         acquisition/run_resume.py. RunLocked while another process writes it, RunFileError naming
-        the file, the dataset and the frame when it is damaged or not a well-formed run file."""
+        the file, the dataset and the frame when it is damaged or not a well-formed run file.
+        ``supersede``: which committed frames a resume re-takes (run_resume.reopen)."""
         from acquisition.run_resume import reopen
 
-        return reopen(path, cls)
+        return reopen(path, cls, supersede)
 
     def _truncate_to(self, n: int) -> None:
         """Every growing dataset shrunk to the counted frames (and stream rows), flushed."""
         self._row_spaces = {}
-        for d in [self._frames, *self._rows.values()]:
+        for d in [self._frames, *self._grown_with_rows()]:
             if d.shape[0] != n:
                 d.resize(n, axis=0)
-        if self._stream is not None and self._stream.shape[0] != self._stream_n:
-            self._stream.resize(self._stream_n, axis=0)
+        for d in (self._stream, self._stream_digests):
+            if d is not None and d.shape[0] != self._stream_n:
+                d.resize(self._stream_n, axis=0)
         self._rows_len = n
         self.f.flush()
+
+    def _grown_with_rows(self) -> list[h5py.Dataset]:
+        """The datasets that grow a row block at a time: the per-frame rows and the frame digests."""
+        return [*self._rows.values(), *([self._digests] if self._digests is not None else [])]
 
     @property
     def capture_indices(self) -> np.ndarray:
@@ -263,6 +297,7 @@ class RunWriter:
         if self._failure:
             raise RunFileError(f"{self.path}: {self._failure}")
         i = self.n
+        self._check_file(i)  # before HDF5 reads anything: in a file cut short its reads retry without end
         frames = self._frames
         if frame.shape != self._frame_shape:
             raise RunFileError(f"{self.path}: frame shape {frame.shape} differs from the run's {self._frame_shape}")
@@ -277,16 +312,21 @@ class RunWriter:
             if stream is not None and len(stream) and self._stream is not None:
                 self._write_stream(np.asarray(stream))
             if self._rows_len <= i:
-                for d in self._rows.values():
+                for d in self._grown_with_rows():
                     d.resize(i + ROW_BLOCK, axis=0)
                 self._rows_len = i + ROW_BLOCK
                 self._row_spaces = {}  # the datasets grew: their file spaces are new
             for name, d in self._rows.items():
                 self._write_row(name, d, i, row[name])
             self._write_frame(frames, i, frame)
+            if self._digests is not None:  # bound to this index and run: after the frame, whose stored chunk it hashes
+                assert self._key is not None
+                digest = frame_digest(self._key, i, stored_chunk(frames, i), row_bytes(row))
+                self._write_row(S.FRAME_DIGEST, self._digests, i, digest)
             self.f.flush()
         except (OSError, RuntimeError) as exc:  # h5py reports a failed flush as RuntimeError
             raise self._fail(i, exc) from None
+        self._check_file(i)
         self.n = i + 1
         if stream is not None and len(stream) and self._stream is not None:
             self._stream_n += len(stream)
@@ -308,6 +348,10 @@ class RunWriter:
         data = np.ascontiguousarray(stream, dtype=dtype)
         if data.shape[1:] != width:
             raise ValueError(f"{self.path}: {S.WRENCH_STREAM}: rows of shape {data.shape[1:]}, the field's are {width}")
+        if self._stream_digests is not None:  # first: a crash then leaves digests without rows, never the reverse
+            assert self._key is not None
+            digests = stream_digests(self._key, m, data)
+            _append_rows(self._stream_digests, m, digests, h5py.h5s.create_simple(digests.shape))
         _append_rows(d, m, data, h5py.h5s.create_simple(data.shape))
 
     def _write_row(self, name: str, d: h5py.Dataset, i: int, value) -> None:
@@ -363,8 +407,73 @@ class RunWriter:
             log.error("%s: after %s, rolling back also failed: %s", self.path, what, _first_line(again))
         return RunFileError(f"{self.path}: {self._failure}")
 
+    def _check_file(self, i: int) -> None:
+        """After a commit: the file at our path is still ours and no shorter than what HDF5 has
+        written. Another process that replaced or cut it (a sync tool, a careless `cp`, a full quota
+        enforced by truncation) would otherwise go unseen until a reader failed on it."""
+        try:
+            st = os.stat(self.path)
+            written = self.f.id.get_filesize()
+        except (OSError, RuntimeError) as exc:
+            raise self._changed(i, f"it can no longer be examined ({_first_line(exc)})") from None
+        if (st.st_dev, st.st_ino) != self._file_id:
+            raise self._changed(i, "another file has taken its name (it was replaced or moved)")
+        if st.st_size < min(written, self._size):
+            raise self._changed(i, f"it was cut from {self._size} to {st.st_size} bytes by another process")
+        self._size = max(st.st_size, written)
+
+    def _changed(self, i: int, what: str) -> RunFileError:
+        """The file changed under this writer: no more frames go into it; the reason says what changed
+        and how many frames were committed before it (readers name the damaged ones)."""
+        self._failure = (
+            f"the file changed while it was written: {what}; {i} frame(s) were committed before this was "
+            "noticed (`dataset validate` names any damaged)"
+        )
+        self._tampered = True  # from now on only written to (the status), never read: see ``close``
+        try:
+            self.f[S.STATUS][()] = np.bytes_("aborted")
+            self.f[S.STATUS_REASON][()] = np.bytes_(self._failure.encode("utf-8")[: S.REASON_LEN])
+            self.f.flush()
+        except (OSError, RuntimeError) as exc:
+            log.error("%s: recording that the file changed also failed: %s", self.path, _first_line(exc))
+        return RunFileError(f"{self.path}: {self._failure}")
+
+    def verify_written(self) -> None:
+        """Before a run is reported complete: the file read back as it is on disk — every frame chunk
+        present, as written and in its place (checksum and identity digest), every row chunk, the
+        stream against its digests — so that a file changed under its writer is never called complete.
+        Only that the file holds what was written: what was written (a NaN in a row, say) is for the
+        readers to judge. RunFileError, the file marked aborted, when it is not what was written."""
+        from acquisition.frame_checks import check_frames, stream_findings
+        from acquisition.run_checks import read_rows
+        from acquisition.run_reader import open_for_reading
+
+        self._check_file(self.n)
+        try:
+            self._truncate_to(self.n)  # the row blocks trimmed to the frames, as at close
+            with open_for_reading(self.path) as f:
+                if f[S.FRAMES].shape[0] != self.n:
+                    raise RunFileError(
+                        f"{self.path}: it holds {f[S.FRAMES].shape[0]} frames where {self.n} were written"
+                    )
+                rows, problems = read_rows(f, list(self._rows), self.n)
+                if not problems:
+                    problems = check_frames(f, rows, self.n).findings()
+                if not problems and self._stream is not None:
+                    problems = stream_findings(f, f[S.WRENCH_STREAM][: self._stream_n])
+            if problems:
+                raise RunFileError(f"{self.path}: {problems[0]}")
+        except RunFileError as exc:
+            problem = str(exc).removeprefix(f"{self.path}: ")
+            raise self._changed(self.n, f"read back, {problem}") from None
+        except (OSError, RuntimeError, KeyError, ValueError) as exc:
+            raise self._changed(self.n, f"read back, {_first_line(exc)}") from None
+
     def set_status(self, status: str, reason: str = "") -> None:
-        """Record how the run ended. After a failed write the failure stays the reason."""
+        """Record how the run ended. After a failed write the failure stays the reason. "complete" only
+        for a file read back as written (``verify_written``)."""
+        if status == "complete" and not self._failure:
+            self.verify_written()
         if self._failure:
             status = "aborted"
             reason = self._failure if not reason or reason in self._failure else f"{self._failure}; {reason}"
@@ -386,7 +495,8 @@ class RunWriter:
         try:
             if self.f.id.valid:
                 try:
-                    self._truncate_to(self.n)
+                    if not self._tampered:  # trimming reads the file's index, which another process may have cut
+                        self._truncate_to(self.n)
                     self.f.close()
                 except (OSError, RuntimeError) as exc:
                     raise RunFileError(

@@ -23,7 +23,12 @@ CAPTURE_INDEX = "capture_index"  # (N,) int64: k of the capture grid t = k / rat
 STEP_INDEX = "step_index"  # (N,) int32: protocol step running at the capture
 PHASE_INDEX = "phase_index"  # (N,) int8: index into the file's own `phases` attribute
 LEVEL = "level"  # (N,) int8: depth level, 1-based
+RETAKE = "retake"  # (N,) int8: 0, or n: recorded again by the n-th resume, which re-did its level (superseded/)
+SUPERSEDED = "superseded"  # group: per resume that re-did a level, the frames and rows it replaced
 WRENCH_STREAM = "wrench_stream"  # (M, 7) float64: t_s on the rig clock, then the wrench, at the gauge's full rate
+# Frame identity (acquisition/frame_identity.py): keyed by the run's own identity, bound to the index
+FRAME_DIGEST = "frame_digest"  # (N, 16) uint8: BLAKE2b of the frame's index, its stored chunk and its row
+STREAM_DIGEST = "wrench_stream_digest"  # (M,) uint64: BLAKE2b of each stream row's index and values
 
 OBJECT_IMAGE = "object/image"  # (H, W, 3) uint8: the indenter's contact face
 REFERENCE_FRAME = "reference_frame"  # (H, W, 3) uint8: no-contact frame taken at the start
@@ -51,6 +56,7 @@ ATTR_SENSOR_PROFILE = "sensor_profile"  # simulated runs: the sensor profile's n
 ATTR_OBJECT_FILE = "object_file_toml"  # a user object file's text (docs/protocols.md, "Your own objects")
 ATTR_OBJECT_PHOTO_SHA256 = "object_photo_sha256"  # sha256 of that object's photo file: the condition's source
 ATTR_ATTRS_SHA256 = "attrs_sha256"  # sha256 of every other root attribute (acquisition/attr_checksum.py)
+ATTR_RUN_ID = "run_id"  # 32 hex digits, random at creation: the key of the frame and stream digests
 
 SCHEMA_VERSION = 1
 STATUS_LEN = 16
@@ -118,11 +124,17 @@ PER_FRAME_FIELDS = (
     Field(STEP_INDEX, (), "i4", "", True),
     Field(PHASE_INDEX, (), "i1", "", True, columns=("phase",), fill=1),  # CSV: the phase's name; 1: press
     Field(LEVEL, (), "i1", "", True),
+    Field(RETAKE, (), "i1", "", True, required=False),  # files before resume re-did levels lack it: 0
 )
 FRAMES_FIELD = Field(FRAMES, (None, None, 3), "u1", "BGR, 0-255", True)
 # Per-run datasets that grow during the run, each row its own time stamp (first column).
 STREAM_FIELDS = (
     Field(WRENCH_STREAM, (None, 7), "f8", "s (rig clock), N, N, N, N·mm, N·mm, N·mm", False, required=False),
+)
+# The digests that bind each frame and stream row to its index and run; files before them lack them.
+DIGEST_FIELDS = (
+    Field(FRAME_DIGEST, (16,), "u1", "", True, required=False),
+    Field(STREAM_DIGEST, (None,), "u8", "", False, required=False),
 )
 FIXED_FIELDS = (
     Field(OBJECT_IMAGE, (None, None, 3), "u1", "", False),
@@ -131,7 +143,7 @@ FIXED_FIELDS = (
     Field(STATUS_REASON, (), f"S{REASON_LEN}", "", False),
     Field(SIM_SOLVER_WARNINGS, (), "i8", "count", False, required=False),
 )
-FIELDS = (FRAMES_FIELD, *PER_FRAME_FIELDS, *STREAM_FIELDS, *FIXED_FIELDS)
+FIELDS = (FRAMES_FIELD, *PER_FRAME_FIELDS, *STREAM_FIELDS, *DIGEST_FIELDS, *FIXED_FIELDS)
 FIELD = {f.path: f for f in FIELDS}  # a field by its dataset path
 
 # Root attributes and the kind of value each holds: "str", "float", "int", "float[4]", "str[]".
@@ -159,6 +171,7 @@ OPTIONAL_ATTRS = (
     (ATTR_OBJECT_FILE, "str"),
     (ATTR_OBJECT_PHOTO_SHA256, "str"),
     (ATTR_ATTRS_SHA256, "str"),
+    (ATTR_RUN_ID, "str"),
 )
 
 # The frames' lossless codecs, chosen by bench/storage_bench.py (docs/benchmarks.md):

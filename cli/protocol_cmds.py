@@ -301,10 +301,23 @@ def _run_hw(protocol, plan, path, resume, origin, config, origin_line: str = "")
         "rig_config": Path(cfg_path).read_text(),
         "mm_per_px": cfg.camera.mm_per_px if cfg.camera and cfg.camera.mm_per_px is not None else float("nan"),
     }
+    if cfg.camera is not None and cfg.camera.sensor_profile is not None:
+        # the profile the config names for its camera (`rig sim serve` names its simulated sensor's)
+        header["sensor_profile"] = _profile_record(str(cfg_path), cfg.camera.sensor_profile)
     from rig.signal_safety import opened_safely
 
     with opened_safely(lambda: Rig.open(cfg, camera=True, indenter=protocol.object)) as rig:
         _execute(rig, plan, path, resume, origin, header, monitor_interval_s=None, origin_line=origin_line)
+
+
+def _profile_record(config_path: str, profile_path: str) -> str:
+    """The record of the sensor profile a config's [camera] names; ConfigError naming the key."""
+    from sensor_sim.profile import ProfileError, load_profile
+
+    try:
+        return load_profile(profile_path).record()
+    except ProfileError as exc:
+        raise ConfigError(config_path, "camera.sensor_profile", str(exc)) from None
 
 
 def _execute(

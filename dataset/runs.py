@@ -19,6 +19,7 @@ from acquisition import attr_checksum
 from acquisition import run_checks as C
 from acquisition import schema as S
 from acquisition.chunk_checksum import ChunkIndexError, chunk_index
+from acquisition.frame_checks import MOVED, check_frames, stream_findings
 from acquisition.run_layout import attr_problems, decode_phases, field_problems
 from acquisition.run_reader import RunReader, open_for_reading
 from acquisition.writer_lock import RunFileError
@@ -170,6 +171,7 @@ def _check_open_run(f: h5py.File, out: Check, max_skew_s: float, sample_frames: 
     names = [fl.path for fl in S.PER_FRAME_FIELDS if fl.path in sound and fl.path not in short]
     rows, findings = C.read_rows(f, names, n)
     out.findings += findings
+    whole_rows = not findings and all(fl.path in rows for fl in S.PER_FRAME_FIELDS)  # what a frame's digest covers
     phases = decode_phases(f) if S.ATTR_PHASES in f.attrs else None
     out.findings += C.row_findings(rows, n, None if phases is None else len(phases))
     if S.WRENCH_SKEW in rows:
@@ -181,9 +183,17 @@ def _check_open_run(f: h5py.File, out: Check, max_skew_s: float, sample_frames: 
             )
     for fl in S.STREAM_FIELDS:
         if fl.path in sound:
-            out.findings += C.read_stream(f, fl.path)[1]
+            stream, found = C.read_stream(f, fl.path)
+            out.findings += found or stream_findings(f, stream)
     if S.FRAMES in sound:
         _check_frames(f[S.FRAMES], n, sample_frames, out)
+        if whole_rows and sample_frames is None:  # each frame in its place (acquisition/frame_identity.py)
+            try:
+                moved = check_frames(f, rows, n)
+            except ChunkIndexError:
+                moved = None  # said by _check_frames
+            if moved is not None:
+                out.findings += [line for line in moved.findings() if MOVED in line]
     out.findings += C.image_findings(f, sound)[1]
 
 

@@ -38,6 +38,11 @@ HEIGHT_SUFFIXES = (".png", ".npy")
 MM_PER_PX_LOW, MM_PER_PX_HIGH = 1e-4, 1.0
 MAX_SIDE_PX = 16384  # a larger image is a mistake (or a 1 GB array), not a photo of a contact face
 MAX_MM_PER_COUNT = 1.0  # one grey level of a 16-bit map at 1 mm spans 65 m: surely a unit slip
+MAX_HEIGHT_MM = 1000.0  # a height beyond 1 m is a unit slip (µm or counts written as mm), not a contact face
+# The relief that touches a gel: no gel a rig config accepts is thicker (rig/config, gel_thickness_mm
+# <= 50 mm), and a face whose relief reaches the gel's thickness would press its tallest part through
+# it; a rig that knows its gel refuses a relief at or beyond that too (rig/sim/rig_sim.py).
+MAX_RELIEF_MM = 50.0
 
 
 class NoHeightMap(ToolError):
@@ -213,6 +218,18 @@ def _read_height_map(table: Table, base: Path) -> HeightMap:
     _check_size(table, height)
     if not np.isfinite(height).any():
         raise table.error("file", f"{path.name}: has no material (every value is 0 or NaN)")
+    tallest = float(np.nanmax(np.abs(height)))
+    if tallest > MAX_HEIGHT_MM:
+        raise table.error(
+            "file", f"{path.name}: a height of {tallest:.4g} mm; expected heights in mm within ±{MAX_HEIGHT_MM:g} mm"
+        )
+    relief = float(np.nanmax(height) - np.nanmin(height))
+    if relief >= MAX_RELIEF_MM:
+        raise table.error(
+            "file",
+            f"{path.name}: relief {relief:.4g} mm; a contact face's must be under {MAX_RELIEF_MM:g} mm (the thickest "
+            "gel a rig takes): crop the map to the part that touches, or check its units",
+        )
     mm_per_px = table.get("mm_per_px", float, low=MM_PER_PX_LOW, high=MM_PER_PX_HIGH)
     if path.suffix.lower() == ".npy" and "mm_per_count" in table.data:
         raise table.error("mm_per_count", "only for a 16-bit PNG; a .npy map holds heights in mm")

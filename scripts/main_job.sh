@@ -7,6 +7,12 @@
 #
 #   bash scripts/main_job.sh [OUT_DIR]        (default: jobs/main-YYYYmmdd-HHMMSS)
 #
+# Interrupted (Ctrl-C, a crash, a closed terminal)? The same command on the same folder continues:
+# runs that finished and validate are kept, an interrupted run is resumed from the start of the
+# level it broke (`rig run-protocol --resume`), a finished split is reused, training resumes from
+# its last checkpoint (every 100 steps) and a finished report is kept. It refuses other knobs than
+# the folder was started with (job.env).
+#
 # Knobs (environment), defaults chosen by bench/first_result_bench.py (docs/benchmarks.md,
 # "The main job"): OBJECTS="sphere10mm circle8mm", SPEED_MM_S=0.1 (the paper's ~700 frames per
 # object; the library default 0.01 mm/s gives ~5,800), COLLECT_PARALLEL=1 (collect the objects
@@ -36,9 +42,19 @@ if [[ ! -x "$bin/rig" ]]; then
     echo "error: $bin/rig not found: run 'bash scripts/setup.sh' first" >&2
     exit 2
 fi
+# the knobs a folder was started with: continuing it with others would mix two jobs
+knobs="OBJECTS=${objects[*]} SPEED_MM_S=$speed STEPS=$steps BATCH=$batch LR=$lr EVAL_FRAMES=$eval_frames SETTINGS=$settings CONDITIONING=$conditioning"
+continuing=0
 if [[ -e "$out" ]]; then
-    echo "error: $out exists: pass another output folder" >&2
-    exit 2
+    if [[ ! -f "$out/job.env" ]]; then
+        echo "error: $out exists and is not a main job's folder (no job.env): pass another output folder" >&2
+        exit 2
+    fi
+    if [[ "$(cat "$out/job.env")" != "$knobs" ]]; then
+        echo "error: $out was started with $(cat "$out/job.env"); continue it with the same knobs, or pass another folder" >&2
+        exit 2
+    fi
+    continuing=1
 fi
 for knob in STEPS BATCH EVAL_FRAMES; do
     value="${!knob:-1}"
@@ -52,6 +68,10 @@ if [[ "$parallel" != 0 && "$parallel" != 1 ]]; then
     exit 2
 fi
 mkdir -p "$out/runs"
+[[ -f "$out/job.env" ]] || echo "$knobs" >"$out/job.env"
+if ((continuing)); then
+    echo "continuing $out (started with: $knobs)"
+fi
 
 # Seconds each stage takes with the defaults on an idle 2-core machine (docs/benchmarks.md, "The main
 # job": 22 s, 1 s, 1 s, 2 min 20 s, 36 s; 3 min 20 s in all, against 3 min 06 s to 3 min 48 s measured
@@ -85,6 +105,12 @@ run() { show "$@"; "$@"; }
 background=()
 stop_background() { for pid in "${background[@]}"; do kill "$pid" 2>/dev/null || true; done; }
 trap stop_background EXIT
+interrupted() {
+    stop_background
+    printf '\ninterrupted: continue with\n  bash scripts/main_job.sh %q\n' "$out" >&2
+    exit 130
+}
+trap interrupted INT TERM HUP
 
 runs=()
 stage "collect ${objects[*]} on the simulated rig: press/shear/twist at $speed mm/s, 1 Hz capture" \
@@ -92,8 +118,17 @@ stage "collect ${objects[*]} on the simulated rig: press/shear/twist at $speed m
 last=$(( ${#objects[@]} - 1 ))
 for k in "${!objects[@]}"; do
     obj="${objects[$k]}"
-    cmd=("$bin/rig" run-protocol "$obj" --sim --set "motion.speed_mm_s=$speed" --out "$out/runs/$obj.h5")
-    runs+=("$out/runs/$obj.h5")
+    file="$out/runs/$obj.h5"
+    runs+=("$file")
+    if [[ -e "$file" ]] && "$bin/dataset" validate "$file" >/dev/null 2>&1; then
+        echo "$file: complete and valid, kept"
+        continue
+    fi
+    if [[ -e "$file" ]]; then  # interrupted: again from the start of the level it broke
+        cmd=("$bin/rig" run-protocol "$obj" --sim --set "motion.speed_mm_s=$speed" --resume "$file")
+    else
+        cmd=("$bin/rig" run-protocol "$obj" --sim --set "motion.speed_mm_s=$speed" --out "$file")
+    fi
     if ((parallel)) && ((k < last)); then
         show "${cmd[@]}" ">$out/runs/$obj.log 2>&1 &"
         "${cmd[@]}" >"$out/runs/$obj.log" 2>&1 &
@@ -115,15 +150,32 @@ stage "validate the run files"
 run "$bin/dataset" validate "${runs[@]}"
 
 stage "split 8:2 by frame"
-run "$bin/dataset" split 8:2 "${runs[@]}" --out "$out/split"
+if [[ -f "$out/split/split.json" ]]; then
+    echo "$out/split: made before, kept (train checks that its runs are unchanged)"
+else
+    run "$bin/dataset" split 8:2 "${runs[@]}" --out "$out/split"
+fi
 
 stage "train the tiny preset on CPU ($conditioning): $steps steps of $batch frames at learning rate $lr (validation samples in $out/model/samples)"
-run "$bin/train" --data "$out/split" --out "$out/model" --preset tiny --steps "$steps" --batch-size "$batch" --lr "$lr" \
-    --conditioning "$conditioning" --sample-every "$steps"
+train=("$bin/train" --data "$out/split" --out "$out/model" --preset tiny --steps "$steps" --batch-size "$batch" --lr "$lr"
+    --conditioning "$conditioning" --sample-every "$steps" --checkpoint-every 100)
+done_steps="$("$bin/python" -c 'import json,sys; print(json.load(open(sys.argv[1]))["step"])' \
+    "$out/model/checkpoint/state.json" 2>/dev/null || echo 0)"
+if ((done_steps >= steps)); then
+    echo "$out/model: trained to step $done_steps before, kept"
+elif ((done_steps > 0)); then
+    run "${train[@]}" --resume
+else
+    run "${train[@]}"
+fi
 
 stage "evaluate on up to $eval_frames held-out frames: $settings, and the physics render"
-run "$bin/evaluate" --checkpoint "$out/model" --split "$out/split" --out "$out/report" --settings "$settings" \
-    --limit "$eval_frames"
+if [[ -f "$out/report/report.md" ]]; then
+    echo "$out/report: written before, kept"
+else
+    run "$bin/evaluate" --checkpoint "$out/model" --split "$out/split" --out "$out/report" --settings "$settings" \
+        --limit "$eval_frames"
+fi
 
 took+=($((SECONDS - stage_start)))
 summary=""

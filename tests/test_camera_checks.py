@@ -201,3 +201,8 @@ def test_run_protocol_against_rig_sim_serve_completes(serve_process, tmp_path):
     assert "complete: 21/21 frames" in result.output
     with open_for_reading(out) as f:
         assert f[S.FRAMES].shape == (21, 256, 256, 3) and f[S.FRAMES][-1].std() > 1.0  # rendered gel frames
+        # the served rig's simulated sensor is named in the run, as a --sim run names it (never "a real sensor")
+        from sensor_sim.profile import default_profile
+
+        recorded = f.attrs[S.ATTR_SENSOR_PROFILE]
+        assert f'name = "{default_profile().name}"' in recorded and default_profile().content_hash() in recorded

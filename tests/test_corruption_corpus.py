@@ -67,8 +67,40 @@ def _relabel(path: Path, old: bytes, new: bytes) -> None:
     path.write_bytes(data.replace(old, new))
 
 
+def _swap_frames(path: Path, a: int, b: int) -> None:
+    """Frames a and b stored in each other's place, each chunk with its own valid checksum."""
+    with h5py.File(path, "r+") as f:
+        d = f[S.FRAMES]
+        origin = (0,) * (d.ndim - 1)
+        (mask_a, raw_a), (mask_b, raw_b) = d.id.read_direct_chunk((a, *origin)), d.id.read_direct_chunk((b, *origin))
+        d.id.write_direct_chunk((a, *origin), raw_b, mask_b)
+        d.id.write_direct_chunk((b, *origin), raw_a, mask_a)
+
+
+def _zero_page(path: Path, at: int) -> None:
+    """The 4 KiB page (as a disk or a filesystem fails) holding byte ``at``, zeroed."""
+    data = bytearray(path.read_bytes())
+    start = at - at % 4096
+    data[start : start + 4096] = bytes(4096)
+    path.write_bytes(bytes(data))
+
+
+def _truncated_under_its_writer(path: Path) -> None:
+    """Another process cut the file to 60 % while its writer went on (as before issue 36, when the
+    writer noticed nothing): the writer's later writes extend it again, the cut-off part reads zeros."""
+    with h5py.File(path, "r+", libver="latest") as f:
+        keep = int(path.stat().st_size * 0.6)
+        with open(path, "r+b") as other:
+            other.truncate(keep)
+        f[S.STATUS_REASON][()] = np.bytes_("")  # the writer goes on writing and closes it
+        f.flush()
+
+
 # name: (how to damage a copy, the frame the refusal must name or None)
 DAMAGES = {
+    "frame chunks swapped": (lambda p: _swap_frames(p, MIDDLE, MIDDLE + 1), MIDDLE),
+    "4 KiB page zeroed": (lambda p: _zero_page(p, chunk_middle(p, S.FRAMES, MIDDLE)), None),
+    "truncated under its writer": (_truncated_under_its_writer, None),
     "superblock bit flip": (lambda p: flip(p, 13), None),
     "root group header bit flip": (lambda p: flip(p, _header_of(p, None)), None),
     "frames header bit flip": (lambda p: flip(p, _header_of(p, S.FRAMES)), None),

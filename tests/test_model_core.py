@@ -133,6 +133,7 @@ def write_run(path, obj, rows, *, kind="rgb", reference=None, profile=None):
             step_index=0,
             phase_index=1,
             level=1,
+            retake=0,
         )
     w.set_status("complete")
     w.close()

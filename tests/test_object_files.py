@@ -266,3 +266,38 @@ def test_protocol_object_file_missing_or_unknown_name(tmp_path):
     absolute = write_object(elsewhere).resolve()
     proto.write_text(proto.read_text().replace('object = "teapot"', f'object = "{absolute}"'))
     assert load_protocol(proto).object == str(absolute)
+
+
+@pytest.mark.parametrize(
+    "tallest, words",
+    [(1e30, r"a height of 1e\+30 mm; expected heights in mm within ±1000 mm"), (60.0, r"relief 59.5 mm; a contact")],
+)
+def test_absurd_heights_are_refused_in_one_line(tmp_path, tallest, words):
+    """A height map of 1e30 mm (a unit slip) or a relief taller than any gel is not a contact face."""
+    write_object(tmp_path)
+    heights = np.full((40, 40), np.nan)
+    heights[10:30, 10:30] = 0.5
+    heights[15, 15] = tallest
+    np.save(tmp_path / "block.npy", heights)
+    text = (tmp_path / "star.toml").read_text().split("[height_map]")[0]
+    text += '[height_map]\nfile = "block.npy"\nmm_per_px = 0.1\ncentre_px = [19.5, 19.5]\n'
+    (tmp_path / "star.toml").write_text(text)
+    with pytest.raises(ConfigError, match=words):
+        load_object_file(tmp_path / "star.toml")
+    result = rig("object", "check", str(tmp_path / "star.toml"))
+    assert result.exit_code == 1 and len(result.output.strip().splitlines()) == 1, result.output
+
+
+def test_a_relief_as_tall_as_the_simulated_gel_is_refused_by_the_simulated_rig(tmp_path):
+    from rig.sim.rig_sim import SimulatedRig
+
+    write_object(tmp_path)
+    heights = np.full((40, 40), np.nan)
+    heights[10:30, 10:30] = 0.0
+    heights[19, 19] = 3.5  # a 3.5 mm spike on a 3 mm gel
+    np.save(tmp_path / "block.npy", heights)
+    text = (tmp_path / "star.toml").read_text().split("[height_map]")[0]
+    text += '[height_map]\nfile = "block.npy"\nmm_per_px = 0.1\ncentre_px = [19.5, 19.5]\n'
+    (tmp_path / "star.toml").write_text(text)
+    with pytest.raises(ConfigError, match="press through the gel"):
+        SimulatedRig(indenter=str(tmp_path / "star.toml"))

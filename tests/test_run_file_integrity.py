@@ -63,6 +63,7 @@ def row(i: int) -> dict:
         S.STEP_INDEX: 0,
         S.PHASE_INDEX: 1,
         S.LEVEL: 1,
+        S.RETAKE: 0,
     }
 
 
@@ -264,10 +265,17 @@ def test_validate_catches_a_corrupted_last_frame_and_row(tmp_path):
 
 def test_validate_reads_every_frame_unless_asked_to_sample(tmp_path):
     """Before: a black frame between the 64 sampled ones passed."""
+    from acquisition.frame_identity import frame_digest, key_of, row_bytes, stored_chunk
+
     path = make_run(tmp_path / "run.h5", n=200, size=16)
     with h5py.File(path, "r+") as f:
         f[S.FRAMES][101] = 0
         f[S.FRAMES][150] = 77  # constant: a stuck camera, not black
+        # as a camera would have given them: their identity digests are of these frames
+        rows = {fl.path: f[fl.path][()] for fl in S.PER_FRAME_FIELDS}
+        for i in (101, 150):
+            row = row_bytes({k: v[i] for k, v in rows.items()})
+            f[S.FRAME_DIGEST][i] = frame_digest(key_of(f), i, stored_chunk(f[S.FRAMES], i), row)
     assert validate(path) == ["frames[101]: all black", "frames[150]: constant"]
     assert validate(path, sample_frames=4) == []
     notes = check_run(path, sample_frames=4).notes

@@ -97,6 +97,7 @@ def test_rows_written_low_level_read_back_exactly_with_plain_h5py(tmp_path):
             S.STEP_INDEX: i // 10,
             S.PHASE_INDEX: i % 2,
             S.LEVEL: i % 4,
+            S.RETAKE: 0,
         }
         rows.append(row)
         w.append(np.full((8, 8, 3), i % 256, np.uint8), stream=stream if len(stream) else None, **row)

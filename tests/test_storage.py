@@ -139,7 +139,10 @@ def test_verify_finds_a_changed_frame(tmp_path):
     b = write_run(tmp_path / "b.h5")
     with h5py.File(a, "r") as fa, h5py.File(b, "r+") as fb:
         fb.attrs[S.ATTR_CREATED] = fa.attrs[S.ATTR_CREATED]  # written a second apart, maybe
+        fb.attrs[S.ATTR_RUN_ID] = fa.attrs[S.ATTR_RUN_ID]  # each run has its own identity...
         fb.attrs[S.ATTR_ATTRS_SHA256] = fa.attrs[S.ATTR_ATTRS_SHA256]  # ...and so checksummed apart
+        del fb[S.FRAME_DIGEST]
+        run_compact._redigest(fb)  # b's frames signed as a's identity would sign them
         assert run_compact._verify(fa, fb) == ""
     with h5py.File(b, "r+") as fb:
         fb[S.FRAMES][7] = frame(8)

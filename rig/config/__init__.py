@@ -124,6 +124,7 @@ class CameraConfig(KindKeys):
     discard_frames: int = 5
     mm_per_px: float | None = None  # calibration of the frames, stored in every run file
     options: Mapping[str, Any] = field(default_factory=dict, hash=False)  # the kind's own keys besides device
+    sensor_profile: str | None = None  # the sensor profile (TOML) the frames come from, recorded in every run file
 
 
 @dataclass(frozen=True)
@@ -263,9 +264,17 @@ def _camera(path: str, data: Any) -> CameraConfig:
         discard_frames=t.get("discard_frames", int, 5, low=0, high=1000),
         mm_per_px=t.get("mm_per_px", float, None, low=1e-4, high=10.0),
         options=options,
+        sensor_profile=_relative_path(path, t.get("sensor_profile", str, None)),
     )
     t.done()
     return cfg
+
+
+def _relative_path(config_path: str, value: str | None) -> str | None:
+    """A path a config names, relative to the config's folder (absolute paths as given)."""
+    if value is None or Path(value).is_absolute() or config_path.startswith("<"):
+        return value
+    return str(Path(config_path).parent / value)
 
 
 def _three(v: tuple[float, ...]) -> tuple[float, float, float]:

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 
+from common.errors import ConfigError
 from objects.object_file import is_object_file, load_object_file
 from rig.clock import Clock, SystemClock
 from rig.config import RigConfig, parse_config
@@ -79,6 +80,15 @@ class SimulatedRig:
                 )
             )
         self.world = SimWorld(self.clock, spec, contact=contact, seed=seed)
+        if is_object_file(indenter):
+            relief = load_object_file(indenter).height_map
+            if relief is not None and relief.relief_mm >= self.gel_thickness_mm:
+                raise ConfigError(
+                    indenter,
+                    "file",
+                    f"the height map's relief is {relief.relief_mm:.3g} mm, not less than the simulated gel's "
+                    f"{self.gel_thickness_mm:g} mm: its tallest part would press through the gel",
+                )
         self.sensor_kind = sensor_kind
         self.triggered_camera = False  # acquisition sets it: frames only on capture
         # A discrete-event (manual) clock has the devices emit synchronously on each
@@ -166,6 +176,9 @@ class SimulatedRig:
             )
             width, height = self.camera_px
             lines += [f"width = {width}", f"height = {height}", "fps = 25.0", "discard_frames = 2"]
+            if self.profile is not None and getattr(self.profile, "path", None):
+                # the frames' sensor, recorded in every run made through this config (a served rig's too)
+                lines.append(f"sensor_profile = {toml_value(str(self.profile.path))}")
             solver = getattr(self.world.contact, "solver", None)
             if solver is not None:  # the rendered pad's calibration, stored in every run file
                 lines.append(f"mm_per_px = {solver.geometry.width_mm / width!r}")

@@ -1,0 +1,89 @@
+"""The main job continues where it stopped (issue 36): interrupted with Ctrl-C in each of its stages,
+`bash scripts/main_job.sh FOLDER` prints the one command that continues it, and that command does:
+kept what finished, resumed the interrupted run from the start of its level, resumed training from its
+checkpoint, and ended with a report. Small knobs keep it to a few minutes."""
+
+from __future__ import annotations
+
+import os
+import re
+import signal
+import subprocess
+from pathlib import Path
+
+import h5py
+import pytest
+
+from acquisition import schema as S
+
+ROOT = Path(__file__).resolve().parents[1]
+KNOBS = {
+    "OBJECTS": "sphere10mm",
+    "SPEED_MM_S": "0.5",
+    "STEPS": "200",
+    "BATCH": "4",
+    "EVAL_FRAMES": "4",
+    "SETTINGS": "ddim:2",
+}
+# (the stage's banner, then the line the Ctrl-C waits for, then how long after it, s of real time);
+# training is stopped after its checkpoint at step 100, so that the next run resumes from it
+STOPS = [
+    ("[1/5]", r"^collect|frames", 4.0),
+    ("[2/5]", None, 0.2),
+    ("[3/5]", None, 0.2),
+    ("[4/5]", r"^step 150/200", 0.0),
+    ("[5/5]", None, 3.0),
+]
+
+
+def _job(out: Path) -> subprocess.Popen:
+    return subprocess.Popen(
+        ["bash", "scripts/main_job.sh", str(out)],
+        cwd=ROOT,
+        env=dict(os.environ, PYTHONUNBUFFERED="1", **KNOBS),  # each line as it is printed
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+        start_new_session=True,  # its own process group: Ctrl-C reaches every process of it, as in a terminal
+    )
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(1200)
+def test_the_main_job_interrupted_in_each_stage_continues_with_one_command(tmp_path):
+    out = tmp_path / "job"
+    said = []
+    for banner, pattern, after_s in STOPS:
+        job = _job(out)
+        seen = []
+        waiting_for = banner
+        for line in job.stdout:
+            seen.append(line)
+            if waiting_for == banner and banner in line:
+                if pattern is None:
+                    break
+                waiting_for = pattern
+            elif waiting_for == pattern and re.search(pattern, line):
+                break
+        try:
+            job.wait(timeout=after_s)
+        except subprocess.TimeoutExpired:
+            os.killpg(job.pid, signal.SIGINT)  # Ctrl-C in the job's terminal
+        rest, _ = job.communicate(timeout=300)
+        text = "".join(seen) + rest
+        said.append(text)
+        if job.returncode == 0:
+            break  # the stage ended before the Ctrl-C reached it: nothing left to continue
+        assert job.returncode == 130, text
+        assert re.search(rf"interrupted: continue with\n  bash scripts/main_job.sh {re.escape(str(out))}\n", text), text
+        assert "Traceback" not in text, text
+    final = _job(out)
+    text, _ = final.communicate(timeout=900)
+    assert final.returncode == 0, text
+    assert (out / "report" / "report.md").is_file()
+    assert "continuing" in text and "complete and valid, kept" in text
+    run = out / "runs" / "sphere10mm.h5"
+    with h5py.File(run, "r") as f:
+        assert f[S.STATUS][()] == b"complete"
+        assert S.SUPERSEDED in f and (f[S.RETAKE][()] > 0).any()  # interrupted mid-level: that level taken again
+    assert any("resumed at step" in t for t in said[3:] + [text])  # training continued from its checkpoint
