@@ -115,6 +115,15 @@ def validate(
         raise typer.Exit(1)
 
 
+def _listed(text: str | None, option: str) -> list[str]:
+    if text is None:
+        return []
+    names = [name.strip() for name in text.split(",") if name.strip()]
+    if not names:
+        raise typer.BadParameter(f"{option} {text!r}: expected run files joined by ','")
+    return names
+
+
 @app.command()
 @friendly
 def split(
@@ -143,6 +152,20 @@ def split(
             "form the part test_force, never trained on; the rest is split by RATIO. Default: none."
         ),
     ] = None,
+    test_runs: Annotated[
+        Optional[str],
+        typer.Option(
+            help="Runs (of PATHS, comma-separated) whose frames are the test part; the other runs are split by "
+            "RATIO's other parts (train, or train:val). Default: the test part is drawn by RATIO."
+        ),
+    ] = None,
+    hold_out_runs: Annotated[
+        Optional[str],
+        typer.Option(
+            help="Runs (of PATHS, comma-separated) never trained on: their frames form the part test_run. "
+            "Default: none."
+        ),
+    ] = None,
 ):
     """Split runs deterministically; wrench statistics come from the training part only. Every run file is
     verified whole first (schema, rows, every frame's checksum) and its identity recorded, so that train and
@@ -161,10 +184,14 @@ def split(
         allow_incomplete=allow_incomplete,
         hold_out=held,
         hold_out_top=hold_out_top,
+        test_runs=_listed(test_runs, "--test-runs"),
+        hold_out_runs=_listed(hold_out_runs, "--hold-out-runs"),
         warn=lambda m: typer.secho(m, fg=typer.colors.YELLOW, err=True),
     )
     sizes = ", ".join(f"{k} {len(v)}" for k, v in result.parts.items())
     typer.echo(f"{out}: {sizes} frames from {len(result.runs)} run(s) (by {by}, seed {seed})")
+    for run, where in zip(result.runs, result.where or []):  # which run went where, as split.json records it
+        typer.echo(f"  {run}: " + ", ".join(f"{part} {frames}" for part, frames in where.items()))
     if held:
         typer.echo(f"  held out (test_object): {', '.join(sorted(set(held)))}")
     top = result.held_out_top

@@ -510,7 +510,10 @@ def evaluate(
             "matching force (or the physics render); generated with the first --settings entry."
         ),
     ] = True,
-    sweep_poses: Annotated[int, typer.Option(help="Poses of each part the force sweep is made at.", min=1)] = 3,
+    sweep_poses: Annotated[
+        int,
+        typer.Option(help="Poses of each part the force sweep is made at, spread over the field and the loads.", min=1),
+    ] = 8,
     sweep_points: Annotated[int, typer.Option(help="Values of each wrench component per sweep.", min=2)] = 7,
     sweep_beyond: Annotated[
         float,
@@ -621,7 +624,10 @@ def compare(
     limit: Annotated[
         Optional[int], typer.Option(help="At most this many frames of each part (default: all).", min=1)
     ] = None,
-    sweep_poses: Annotated[int, typer.Option(help="Poses of each part the force sweep is made at.", min=1)] = 3,
+    sweep_poses: Annotated[
+        int,
+        typer.Option(help="Poses of each part the force sweep is made at, spread over the field and the loads.", min=1),
+    ] = 8,
     sweep_points: Annotated[int, typer.Option(help="Values of each wrench component per sweep.", min=2)] = 7,
     profile: Annotated[
         Optional[Path],

@@ -33,6 +33,7 @@ from common.errors import ConfigError
 from common.table import finite_number
 from dataset.runs import RunSummary, open_run, summary_of
 from dataset.split_manifest import MANIFEST, SplitError, check_unchanged, load_split
+from dataset.split_parts import allocate, check_honoured, named_runs, parts_of_run
 
 __all__ = [
     "MANIFEST",
@@ -46,10 +47,11 @@ __all__ = [
 
 PART_NAMES = {2: ("train", "test"), 3: ("train", "val", "test")}
 HELD_OUT_PART = "test_object"  # every frame of the held-out objects
+RUN_PART = "test_run"  # every frame of the runs named --hold-out-runs
 FORCE_PART = "test_force"  # the frames with the largest values of one wrench component (--hold-out-top)
 WRENCH_COMPONENTS = ("Fx", "Fy", "Fz", "Mx", "My", "Mz")  # the wrench columns, in order (acquisition/schema.py)
 WRENCH_UNITS = ("N", "N", "N", "N·mm", "N·mm", "N·mm")
-TEST_PARTS = ("test", HELD_OUT_PART, FORCE_PART)  # the parts evaluation reports on, when present
+TEST_PARTS = ("test", HELD_OUT_PART, RUN_PART, FORCE_PART)  # the parts evaluation reports on, when present
 PERCENTILES = (2, 50, 98)  # of the training wrench, per component: the range a force sweep covers
 
 
@@ -153,23 +155,6 @@ def _hold_out_top(
     return held, kept, record
 
 
-def _allocate(n: int, ratios: tuple[float, ...], what: str = "frame") -> list[int]:
-    """Sizes summing to n, closest to the ratios (largest remainders), every part at least 1."""
-    if n < len(ratios):
-        raise SplitError(
-            f"{n} {what}(s) cannot fill {len(ratios)} parts (each needs at least one {what}); "
-            + ("collect more frames" if what == "frame" else "add runs or split by frame")
-        )
-    exact = [r * n for r in ratios]
-    sizes = [int(x) for x in exact]
-    for i in sorted(range(len(ratios)), key=lambda i: exact[i] - sizes[i], reverse=True)[: n - sum(sizes)]:
-        sizes[i] += 1
-    sizes = [max(1, size) for size in sizes]  # a tiny part still gets one, taken from the largest
-    while sum(sizes) > n:
-        sizes[sizes.index(max(sizes))] -= 1
-    return sizes
-
-
 @dataclass
 class Split:
     directory: Path
@@ -178,6 +163,7 @@ class Split:
     wrench_mean: np.ndarray
     wrench_std: np.ndarray
     held_out_top: dict | None = None  # split.json's record of --hold-out-top, when used
+    where: list[dict[str, int]] | None = None  # per run: {part: frames}, as split.json records it
 
 
 def make_split(
@@ -190,13 +176,24 @@ def make_split(
     allow_incomplete: bool = False,
     hold_out: Sequence[str] = (),
     hold_out_top: str | None = None,
+    test_runs: Sequence[str | Path] = (),
+    hold_out_runs: Sequence[str | Path] = (),
     warn=print,
 ) -> Split:
     """``hold_out``: object names whose frames all go to the ``test_object`` part; ``hold_out_top``
     (``Fz:5``): the frames with the largest values of a wrench component go to ``test_force`` (see
-    the module docstring)."""
+    the module docstring). ``test_runs``: runs (of ``paths``) whose frames are the ``test`` part, the
+    others split by the ratio's other parts; ``hold_out_runs``: runs whose frames form ``test_run``."""
     if by not in ("frame", "run", "object"):
         raise SplitError(f"--by must be frame, run or object, got {by!r}")
+    named_test = named_runs(paths, test_runs, "--test-runs")
+    named_out = named_runs(paths, hold_out_runs, "--hold-out-runs")
+    if named_test & named_out:
+        raise SplitError("a run cannot be named both --test-runs and --hold-out-runs")
+    if (named_test or named_out) and by == "object":
+        raise SplitError("--test-runs and --hold-out-runs name runs: split the others --by frame or --by run")
+    if len(named_test | named_out) >= len(paths):
+        raise SplitError("every run is named for a test part: keep at least one to train on")
     held = sorted({name.strip() for name in hold_out if name.strip()})
     if held and by == "object":
         raise SplitError(
@@ -206,6 +203,8 @@ def make_split(
     ratios = parse_ratios(ratios_text)
     top = parse_hold_out_top(hold_out_top) if hold_out_top is not None else None
     names = PART_NAMES[len(ratios)]
+    if named_test:  # the test part is the named runs: the others go to the ratio's other parts
+        names, ratios = names[:-1], tuple(r / sum(ratios[:-1]) for r in ratios[:-1])
     verified = [_verified(p) for p in paths]
     summaries = [v.summary for v in verified]
     shapes = {s.frame_shape for s in summaries}
@@ -236,14 +235,21 @@ def make_split(
             raise SplitError(f"--hold-out {','.join(held)}: that is every object; keep at least one to train on")
         is_held = np.array([s.object_name in held for s in summaries])
         held_rows, rows = rows[is_held[rows[:, 0]]], rows[~is_held[rows[:, 0]]]
+    named_rows: dict[str, np.ndarray] = {}
+    for part, named in (("test", named_test), (RUN_PART, named_out)):
+        if named:
+            is_named = np.array([i in named for i in range(len(summaries))])
+            named_rows[part], rows = rows[is_named[rows[:, 0]]], rows[~is_named[rows[:, 0]]]
     force_rows, force_record = None, None
     if top is not None:
         force_rows, rows, force_record = _hold_out_top(
             top, rows, [v.wrench for v in verified], [s.path for s in summaries], len(ratios), warn=warn
         )
     rng = np.random.default_rng(seed)
-    if by == "frame":
-        sizes = _allocate(len(rows), ratios)
+    if len(names) == 1:  # --test-runs with train:test: every other run trains
+        parts = {names[0]: rows}
+    elif by == "frame":
+        sizes = allocate(len(rows), ratios)
         order = rng.permutation(len(rows))
         cuts = np.cumsum(sizes)[:-1]
         chosen = (rows[idx] for idx in np.split(order, cuts))
@@ -255,10 +261,10 @@ def make_split(
             {
                 k
                 for i, (k, s) in enumerate(zip(keys, summaries))
-                if s.object_name not in held and (top is None or i in left)
+                if s.object_name not in held and i in left  # not held out, named or taken by --hold-out-top
             }
         )
-        sizes = _allocate(len(groups), ratios, what=by)
+        sizes = allocate(len(groups), ratios, what=by)
         shuffled = [groups[i] for i in rng.permutation(len(groups))]
         assignment, start = {}, 0
         for name, size in zip(names, sizes):
@@ -267,6 +273,8 @@ def make_split(
             start += size
         run_part = np.array([names.index(assignment[k]) if k in assignment else -1 for k in keys])
         parts = {name: rows[run_part[rows[:, 0]] == j] for j, name in enumerate(names)}
+        check_honoured(parts, names, ratios, ratios_text, by, list(sizes), bool(named_test))
+    parts.update(named_rows)
     if held:
         parts[HELD_OUT_PART] = held_rows
     if force_rows is not None:
@@ -295,9 +303,12 @@ def make_split(
                 "frame_shape": list(s.frame_shape),
                 "sensor_profile": s.sensor_profile,
                 "identity": v.identity,
+                "parts": parts_of_run(parts, i),  # where its frames went: {part: frames}
             }
-            for s, v in zip(summaries, verified)
+            for i, (s, v) in enumerate(zip(summaries, verified))
         ],
+        "test_runs": sorted(str(Path(summaries[i].path).resolve()) for i in named_test),
+        "hold_out_runs": sorted(str(Path(summaries[i].path).resolve()) for i in named_out),
         "parts": {name: int(len(part)) for name, part in parts.items()},
         "held_out_objects": held,
         "objects": objects,
@@ -310,7 +321,8 @@ def make_split(
         manifest["held_out_top"] = force_record
     out = Path(out)
     _write(out, parts, manifest)
-    return Split(out, [s.path for s in summaries], parts, mean, std, force_record)
+    where = [parts_of_run(parts, i) for i in range(len(summaries))]
+    return Split(out, [s.path for s in summaries], parts, mean, std, force_record, where)
 
 
 @dataclass(frozen=True)

@@ -63,7 +63,7 @@ class SweepOptions:
     """The force-response check: ``poses`` test poses, ``points`` values per component, generated
     with ``sampler`` for ``steps`` steps (the same initial noise at every point)."""
 
-    poses: int = 3
+    poses: int = 8  # spread over the field and the loads (force_sweep.choose_poses)
     points: int = 7
     sampler: str = "ddim"
     steps: int = 10
@@ -84,7 +84,8 @@ def evaluate(
 
 
 def test_parts(split_dir: str | Path) -> list[str]:
-    """The parts ``evaluate_parts`` reports on by default: test and test_object, those the split has."""
+    """The parts ``evaluate_parts`` reports on by default: test, test_object, test_run and test_force,
+    those the split has."""
     from dataset.split import TEST_PARTS, load_split
 
     manifest, _ = load_split(split_dir)

@@ -315,31 +315,44 @@ def swept_ranges(percentiles: dict, components: Sequence[str]) -> tuple[dict[str
 def choose_poses(
     rows: np.ndarray, wrench_of: Callable[[int], np.ndarray], pose_of: Callable[[int], np.ndarray], n: int, std
 ) -> list[tuple[int, int]]:
-    """``n`` pose frames (run, frame) from a part's ``rows``: firm contact (Fz between the part's 40th
-    and 90th percentile), least shear (|Fx|/σx + |Fy|/σy) first, taken from the runs in turn and at
-    least 0.5 mm apart within a run, so the poses differ (``pose_runs`` says how many runs they span)."""
+    """``n`` pose frames (run, frame) from a part's ``rows`` spread over the field and the loads: among
+    the frames in contact (Fz between the part's 10th and 95th percentile) with little shear (|Fx|/σx +
+    |Fy|/σy at most its median there), the one nearest the middle first, then each time the frame
+    farthest from those chosen in (x, y, Fz), each scaled by its span over those frames; no two within
+    0.5 mm and 2 % of the Fz span of each other (``pose_runs`` says how many runs they span). Poses
+    next to each other in Fz, on one side of the field, made the sweep's verdict depend on the pick."""
     runs = sorted({int(r) for r in rows[:, 0]})
-    per_run: dict[int, list[int]] = {}
-    fz_all = np.concatenate([wrench_of(r)[rows[rows[:, 0] == r][:, 1], 2] for r in runs]) if runs else np.zeros(0)
-    if not len(fz_all):
+    if not runs:
         return []
-    lo, hi = np.percentile(fz_all, [40, 90])
+    candidates = []  # (run, frame, x, y, Fz, shear)
     for r in runs:
         frames = rows[rows[:, 0] == r][:, 1]
-        w = wrench_of(r)[frames]
-        firm = (w[:, 2] >= lo) & (w[:, 2] <= hi)
+        w, pose = wrench_of(r)[frames], pose_of(r)[frames]
         shear = np.abs(w[:, 0]) / std[0] + np.abs(w[:, 1]) / std[1]
-        per_run[r] = [int(frames[i]) for i in np.nonzero(firm)[0][np.argsort(shear[firm], kind="stable")]]
-    chosen: list[tuple[int, int]] = []
-    while len(chosen) < n and any(per_run.values()):
-        for r in runs:
-            while per_run[r] and len(chosen) < n:
-                f = per_run[r].pop(0)
-                xy = pose_of(r)[f, :2]
-                if all(rr != r or np.linalg.norm(pose_of(r)[ff, :2] - xy) >= 0.5 for rr, ff in chosen):
-                    chosen.append((r, f))
-                    break
-    return chosen
+        candidates += [(r, int(f), *pose[i, :2], w[i, 2], shear[i]) for i, f in enumerate(frames)]
+    table = np.array([c[2:] for c in candidates], dtype=float)
+    lo, hi = np.percentile(table[:, 2], [10, 95])
+    contact = (table[:, 2] >= lo) & (table[:, 2] <= hi)
+    if not contact.any():
+        return []
+    calm = contact & (table[:, 3] <= np.median(table[contact, 3]))
+    keep = np.nonzero(calm if calm.any() else contact)[0]
+    points = table[keep, :3]
+    span = np.maximum(points.max(axis=0) - points.min(axis=0), 1e-9)
+    scaled = (points - points.min(axis=0)) / span
+    chosen = [int(np.argmin(np.linalg.norm(scaled - np.median(scaled, axis=0), axis=1)))]
+    nearest = np.linalg.norm(scaled - scaled[chosen[0]], axis=1)
+    while len(chosen) < min(n, len(keep)):
+        j = int(np.argmax(nearest))
+        if nearest[j] <= 0:
+            break
+        close = np.linalg.norm(points[j, :2] - points[chosen, :2], axis=1) < 0.5
+        if (close & (np.abs(points[j, 2] - points[chosen, 2]) < 0.02 * span[2])).any():
+            nearest[j] = 0.0  # a twin of a chosen pose
+            continue
+        chosen.append(j)
+        nearest = np.minimum(nearest, np.linalg.norm(scaled - scaled[j], axis=1))
+    return [(candidates[keep[i]][0], candidates[keep[i]][1]) for i in chosen]
 
 
 def pose_runs(poses: Sequence[tuple[int, int]], names: dict[int, str]) -> str:

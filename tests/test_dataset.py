@@ -272,3 +272,37 @@ def test_export_states_the_pose_convention_import_requires(tmp_path):
     (tmp_path / "folder" / "run.json").write_text(json.dumps(meta))
     result = runner.invoke(app, ["import", str(tmp_path / "folder"), "--out", str(tmp_path / "back.h5")])
     assert result.exit_code == 1 and "[pose_convention] missing" in result.output
+
+
+# -- splits that say where each run goes (issue 37) ---------------------------------------------
+def test_named_test_runs_go_to_test_whatever_the_seed_and_the_split_says_where(tmp_path):
+    even = make_run(tmp_path / "even.h5", n=30, seed=0)
+    odd = make_run(tmp_path / "odd.h5", n=30, seed=1)
+    for seed in (0, 3):
+        out = tmp_path / f"s{seed}"
+        args = ["split", "1:1", str(even), str(odd), "--out", str(out), "--seed", str(seed), "--by", "run"]
+        result = runner.invoke(app, [*args, "--test-runs", str(odd)])
+        assert result.exit_code == 0, result.output
+        assert f"  {even}: train 30" in result.output and f"  {odd}: test 30" in result.output
+        manifest, parts = load_split(out)
+        assert manifest["test_runs"] == [str(odd.resolve())]
+        assert [r["parts"] for r in manifest["runs"]] == [{"train": 30}, {"test": 30}]
+        assert set(parts["test"][:, 0].tolist()) == {1}
+
+
+def test_a_ratio_whole_runs_cannot_give_is_refused_in_one_line(tmp_path):
+    a, b = make_run(tmp_path / "a.h5", n=20), make_run(tmp_path / "b.h5", n=20, seed=1)
+    result = runner.invoke(app, ["split", "8:2", str(a), str(b), "--out", str(tmp_path / "s"), "--by", "run"])
+    assert result.exit_code == 1 and "8:2 by run: 2 run(s) can only be split 1:1" in result.output, result.output
+    assert "--test-runs" in result.output and not (tmp_path / "s").exists()
+    # by frame it can: 32 and 8 frames
+    assert runner.invoke(app, ["split", "8:2", str(a), str(b), "--out", str(tmp_path / "f")]).exit_code == 0
+
+
+def test_held_out_runs_form_their_own_part_and_unknown_runs_are_named(tmp_path):
+    runs = [make_run(tmp_path / f"r{i}.h5", n=20, seed=i) for i in range(3)]
+    make_split(runs, "8:2", tmp_path / "s", hold_out_runs=[runs[2]])
+    manifest, parts = load_split(tmp_path / "s")
+    assert set(parts["test_run"][:, 0].tolist()) == {2} and 2 not in set(parts["train"][:, 0].tolist())
+    with pytest.raises(SplitError, match=r"--test-runs .*nosuch.h5: not one of the runs given"):
+        make_split(runs, "8:2", tmp_path / "t", test_runs=[tmp_path / "nosuch.h5"])

@@ -134,20 +134,22 @@ def test_real_frames_are_matched_at_the_pose_and_depth_follows_the_runs_force():
     assert R.depth_for_force(wrench[:, 2], pose[:, 2], 50.0) is None
 
 
-def test_poses_are_firm_low_shear_and_spread_over_runs():
+def test_poses_are_in_contact_low_shear_and_never_twins():
     n = 20
     wrench = {r: np.zeros((n, 6)) for r in (0, 1)}
     pose = {r: np.zeros((n, 4)) for r in (0, 1)}
     for r in (0, 1):
         wrench[r][:, 2] = np.linspace(0, 10, n)
         wrench[r][:, 0] = np.linspace(3, -3, n) ** 2  # least shear at the middle frames
-        pose[r][:, 0] = np.linspace(0, 4, n)
+        pose[r][:, 0] = np.linspace(0, 4, n)  # the two runs press at the same places
     rows = np.array([[r, f] for r in (0, 1) for f in range(n)])
     chosen = F.choose_poses(rows, wrench.__getitem__, pose.__getitem__, 3, np.ones(6))
-    assert [r for r, _ in chosen] == [0, 1, 0]
+    assert len(chosen) == 3
     fz = np.linspace(0, 10, n)
-    assert all(4 <= fz[f] <= 9.5 for _, f in chosen)
-    assert abs(pose[0][chosen[0][1], 0] - pose[0][chosen[2][1], 0]) >= 0.5
+    shear = np.linspace(3, -3, n) ** 2
+    assert all(1.0 <= fz[f] <= 9.5 and shear[f] <= np.median(shear[(fz >= 1.0) & (fz <= 9.5)]) for _, f in chosen)
+    frames = [f for _, f in chosen]
+    assert len(set(frames)) == 3  # the same frame of the other run is a twin: never chosen twice
 
 
 def test_monotonic_follows_the_sign_of_the_references_rho_not_its_size():
@@ -344,3 +346,32 @@ def test_past_the_maximum_compares_with_the_last_value_the_model_was_conditioned
     assert "keeps growing at 1/1 poses" in verdict([s], None, {})
     everything = F.summarise(sweep(hertz, "Fz", values[:5], [R.NONE] * 5, blur_px=0.0, notes=lambda: ["limit"] * 5))
     assert everything["last_inside_index"] is None and math.isnan(everything["area_exponent"])
+
+
+def test_default_sweep_poses_span_the_field_and_the_loads():
+    """Issue 37: the three poses of before sat next to each other in Fz on one half of the field. The
+    default eight span at least 60 % of the field's width (and height) and of the part's Fz range."""
+    from model.force_sweep import choose_poses
+
+    rng = np.random.default_rng(0)
+    runs = {}
+    for r in range(3):  # presses over the field, each a ramp of load, some shear
+        n = 120
+        pose = np.zeros((n, 4))
+        pose[:, 0] = np.repeat(rng.uniform(-3, 3, 6), 20)
+        pose[:, 1] = np.repeat(rng.uniform(-2, 2, 6), 20)
+        wrench = np.zeros((n, 6))
+        wrench[:, 2] = np.tile(np.linspace(0.0, 6.0, 20), 6)
+        wrench[:, :2] = rng.normal(0, 0.2, (n, 2))
+        runs[r] = (pose, wrench)
+    rows = np.array([(r, f) for r in runs for f in range(120)], dtype=np.int32)
+    chosen = choose_poses(rows, lambda r: runs[r][1], lambda r: runs[r][0], 8, np.array([0.2, 0.2, 1, 1, 1, 1]))
+    assert len(chosen) == 8 and len(set(chosen)) == 8
+    xs = np.array([runs[r][0][f, 0] for r, f in chosen])
+    ys = np.array([runs[r][0][f, 1] for r, f in chosen])
+    fz = np.array([runs[r][1][f, 2] for r, f in chosen])
+    all_x = np.concatenate([p[:, 0] for p, _ in runs.values()])
+    all_y = np.concatenate([p[:, 1] for p, _ in runs.values()])
+    all_fz = np.concatenate([w[:, 2] for _, w in runs.values()])
+    assert np.ptp(xs) >= 0.6 * np.ptp(all_x) and np.ptp(ys) >= 0.6 * np.ptp(all_y)
+    assert np.ptp(fz) >= 0.6 * np.ptp(all_fz)

@@ -104,3 +104,45 @@ def test_marker_flow_and_its_figure(tmp_path):
         [row], None, "", True, examples={"real": [np.zeros_like(still)], "ddim, 10 steps": [still]}, references=[still]
     )
     assert not marker_flow_figure(blank, tmp_path / "none.png")  # no markers: no figure, no crash
+
+
+# -- verdicts that follow the intervals (issue 37) ------------------------------------------------
+def _row(setting, mse, mae, ssim, psnr, width=0.1):
+    from model.eval_results import Row
+
+    ci = {
+        k: (v - width * abs(v), v + width * abs(v))
+        for k, v in (("mse", mse), ("mae", mae), ("ssim", ssim), ("psnr", psnr))
+    }
+    return Row(setting, mse, mae, ssim, psnr, None, 0.01, 100, ci=ci)
+
+
+def _evaluation(model, baselines, physics=None, simulated=False):
+    from model.eval_results import Evaluation
+
+    return Evaluation([model], physics, "", False, simulated=simulated, baselines=baselines)
+
+
+def test_a_model_better_on_mse_and_worse_on_mae_is_called_so_metric_by_metric():
+    from model.evaluation_report import metrics_verdict
+
+    model = _row("ddim:10", mse=2.0, mae=2.09, ssim=0.90, psnr=39.1, width=0.02)
+    nearest = _row("nearest training frame", mse=4.0, mae=1.41, ssim=0.90, psnr=41.85, width=0.02)
+    text = metrics_verdict(_evaluation(model, [nearest]))
+    assert "MSE **better** than nearest training frame" in text
+    assert "MAE **worse** than nearest training frame" in text and "PSNR **worse**" in text
+    assert "SSIM **tied** with" in text  # the same value: intervals overlap
+    assert "beats" not in text
+
+
+def test_overlapping_intervals_read_tied_and_the_oracle_is_apart():
+    from model.evaluation_report import metrics_verdict
+
+    model = _row("ddim:10", mse=87.4, mae=5.0, ssim=0.8, psnr=30.0, width=0.1)
+    nearest = _row("nearest training frame", mse=89.9, mae=5.2, ssim=0.79, psnr=29.8, width=0.2)
+    render = _row("physics render", mse=0.5, mae=0.3, ssim=0.99, psnr=50.0, width=0.01)
+    text = metrics_verdict(_evaluation(model, [nearest], physics=render, simulated=True))
+    assert "MSE **tied** with nearest training frame (87.40 [" in text
+    assert "physics render is an oracle on simulated frames" in text and "than physics render" not in text
+    real = metrics_verdict(_evaluation(model, [nearest], physics=render, simulated=False))
+    assert "MSE **worse** than physics render" in real  # on real frames it is a baseline like the others
