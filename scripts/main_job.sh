@@ -18,6 +18,7 @@
 # object; the library default 0.01 mm/s gives ~5,800), COLLECT_PARALLEL=1 (collect the objects
 # at the same time: each is one process; 0: one after another), STEPS=600 training steps,
 # BATCH=16, LR=0.002, EVAL_FRAMES=150 test frames evaluated, SETTINGS=ddim:10,dpm:10,
+# SWEEP_POSES=4 (evaluate's force sweep; its own default is 8),
 # CONDITIONING=plane+embedding (the paper's wrench plane with an embedding, which these settings
 # were measured with; `train`'s own default for rgb is physics, whose render cache adds about
 # 40 ms per training frame: docs/model.md, "Conditioning").
@@ -37,13 +38,16 @@ lr="${LR:-0.002}"
 eval_frames="${EVAL_FRAMES:-150}"
 settings="${SETTINGS:-ddim:10,dpm:10}"
 conditioning="${CONDITIONING:-plane+embedding}"
+# evaluate's force sweep at 4 poses spread over the field and the loads (its default, 8, takes about a
+# minute more here: a first result, said in the report)
+sweep_poses="${SWEEP_POSES:-4}"
 
 if [[ ! -x "$bin/rig" ]]; then
     echo "error: $bin/rig not found: run 'bash scripts/setup.sh' first" >&2
     exit 2
 fi
 # the knobs a folder was started with: continuing it with others would mix two jobs
-knobs="OBJECTS=${objects[*]} SPEED_MM_S=$speed STEPS=$steps BATCH=$batch LR=$lr EVAL_FRAMES=$eval_frames SETTINGS=$settings CONDITIONING=$conditioning"
+knobs="OBJECTS=${objects[*]} SPEED_MM_S=$speed STEPS=$steps BATCH=$batch LR=$lr EVAL_FRAMES=$eval_frames SETTINGS=$settings CONDITIONING=$conditioning SWEEP_POSES=$sweep_poses"
 continuing=0
 if [[ -e "$out" ]]; then
     if [[ ! -f "$out/job.env" ]]; then
@@ -56,7 +60,7 @@ if [[ -e "$out" ]]; then
     fi
     continuing=1
 fi
-for knob in STEPS BATCH EVAL_FRAMES; do
+for knob in STEPS BATCH EVAL_FRAMES SWEEP_POSES; do
     value="${!knob:-1}"
     if ! [[ "$value" =~ ^[1-9][0-9]{0,6}$ ]]; then
         echo "error: $knob=$value: expected a whole number from 1 to 9999999" >&2
@@ -174,7 +178,7 @@ if [[ -f "$out/report/report.md" ]]; then
     echo "$out/report: written before, kept"
 else
     run "$bin/evaluate" --checkpoint "$out/model" --split "$out/split" --out "$out/report" --settings "$settings" \
-        --limit "$eval_frames"
+        --limit "$eval_frames" --sweep-poses "$sweep_poses"
 fi
 
 took+=($((SECONDS - stage_start)))
