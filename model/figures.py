@@ -203,7 +203,7 @@ def force_sweep_figure(sweeps: list, path: Path) -> None:
     panels = [
         ("area_mm2", "contact area, mm²"),
         ("centroid_x_mm", "centroid x, mm"),
-        ("centroid_y_mm", "centroid y, mm"),
+        ("centroid_y_mm", "centroid y, mm (+y up)"),
         ("shading", "shading, mean |change| (0–255)"),
     ]
     colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]

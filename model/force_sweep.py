@@ -181,7 +181,7 @@ def outside_change(image: np.ndarray, no_contact: np.ndarray, measure: ContactMe
     h, w = strength.shape
     px = measure.area_mm2 / measure.area_px  # mm² per pixel
     cx = measure.centroid_x_mm / math.sqrt(px) + (w - 1) / 2
-    cy = measure.centroid_y_mm / math.sqrt(px) + (h - 1) / 2
+    cy = (h - 1) / 2 - measure.centroid_y_mm / math.sqrt(px)  # centroid y is +y up, rows run down
     rows, cols = np.mgrid[:h, :w]
     far = (cols - cx) ** 2 + (rows - cy) ** 2 > 4 * measure.area_px / math.pi
     return float(strength[far].mean()) if far.any() else float("nan")

@@ -31,7 +31,7 @@ class ContactMeasure:
     area_px: int
     area_mm2: float
     centroid_x_mm: float  # from the image centre, +x to the right (columns)
-    centroid_y_mm: float  # from the image centre, +y down (rows)
+    centroid_y_mm: float  # from the image centre, +y up (against the rows), as every other figure has it
     shading: float  # mean |change| (0–255, all channels) inside the contact; 0 without contact
 
 
@@ -71,7 +71,7 @@ def measure_contact(
     weight = strength[mask]
     h, w = strength.shape
     cx = (float(np.average(cols, weights=weight)) - (w - 1) / 2) * mm_per_px
-    cy = (float(np.average(rows, weights=weight)) - (h - 1) / 2) * mm_per_px
+    cy = ((h - 1) / 2 - float(np.average(rows, weights=weight))) * mm_per_px  # +y up
     return ContactMeasure(n, n * mm_per_px**2, cx, cy, float(change[mask].mean()))
 
 

@@ -375,3 +375,13 @@ def test_default_sweep_poses_span_the_field_and_the_loads():
     all_fz = np.concatenate([w[:, 2] for _, w in runs.values()])
     assert np.ptp(xs) >= 0.6 * np.ptp(all_x) and np.ptp(ys) >= 0.6 * np.ptp(all_y)
     assert np.ptp(fz) >= 0.6 * np.ptp(all_fz)
+
+
+def test_the_centroid_is_measured_with_y_up_like_every_other_figure():
+    """Issue 37: a contact above the image centre (smaller row) had a negative centroid y."""
+    image = NO_CONTACT.copy()
+    h, w = image.shape[:2]
+    rows, cols = np.mgrid[:h, :w]
+    image[(rows - (h // 2 - 10)) ** 2 + (cols - w // 2) ** 2 < 36] = 200  # 10 px above the centre
+    m = M.measure_contact(image, NO_CONTACT, mm_per_px=MM_PER_PX, blur_px=0)
+    assert m.centroid_y_mm == pytest.approx(10 * MM_PER_PX, abs=0.6 * MM_PER_PX)
