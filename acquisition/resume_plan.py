@@ -37,7 +37,7 @@ class Restart:
     def why(self, reason: str) -> str:
         return (
             f"captures {self.k}..{self.k_before - 1} of level {self.level} were taken before the run stopped "
-            f"({reason or 'no reason recorded'}); lifting off the gel lost its stick/slip state, so the resume "
+            f"({_reason(reason)}); lifting off the gel lost its stick/slip state, so the resume "
             f"pressed level {self.level} again from its start"
         )
 
@@ -83,3 +83,10 @@ def superseder(plan: Plan, path: Path, same_protocol, found: dict, reason: str =
         return restart.k, restart.why(reason)
 
     return supersede
+
+
+def _reason(reason: str) -> str:
+    """Why the run stopped, without its status word again ("interrupted (SIGINT)…" → "SIGINT…")."""
+    from common.wording import reason_only
+
+    return reason_only("interrupted", reason) or "no reason recorded"

@@ -58,6 +58,7 @@ def friendly(fn):
 @friendly
 def info(paths: Paths):
     """Frames, object, sensor kind, wrench ranges, status and duration of each run (also while it grows)."""
+    from common.wording import status_text
     from dataset.pose_convention import DESCRIPTION as POSE_DESCRIPTION
     from dataset.runs import summarize
     from rig.types import WRENCH_COMPONENTS, WRENCH_UNITS
@@ -66,7 +67,7 @@ def info(paths: Paths):
         s = summarize(path)
         typer.echo(
             f"{s.path}: {s.frames}/{s.frames_planned} frames {s.frame_shape[1]}x{s.frame_shape[0]}, "
-            f"{s.status}{' (' + s.reason + ')' if s.reason else ''}; protocol {s.protocol}, object {s.object_name}, "
+            f"{status_text(s.status, s.reason)}; protocol {s.protocol}, object {s.object_name}, "
             f"sensor {s.sensor_kind}, {s.duration_s:.0f} s, {s.mm_per_px:.4f} mm/px"
         )
         typer.echo(f"  pose: {POSE_DESCRIPTION}")

@@ -5,6 +5,7 @@ from __future__ import annotations
 import typer
 
 from cli.keys import keys
+from cli.options import fixed
 from rig.errors import SafetyError
 
 HELP = "keys: + / up = step up, - / down = step down, ] = step x10, [ = step /10, q = quit"
@@ -15,7 +16,7 @@ def jog_with_keys(m, axis: str, step: float, speed: float | None, stream=None) -
     rig = m.rig
     unit = rig.config.axes[axis].unit
     typer.echo(HELP)
-    typer.echo(f"{axis} = {rig.axes[axis].position():.4f} {unit}, step {step:g} {unit}")
+    typer.echo(f"{axis} = {fixed(rig.axes[axis].position(), 4, sign=False)} {unit}, step {step:g} {unit}")
     for key in keys(stream):
         if key in ("q", "esc"):
             break
@@ -32,7 +33,7 @@ def jog_with_keys(m, axis: str, step: float, speed: float | None, stream=None) -
         except SafetyError as exc:  # a refused step is reported and jogging goes on
             typer.secho(str(exc), fg=typer.colors.YELLOW)
             continue
-        typer.echo(f"{axis} = {pos:.4f} {unit}")
+        typer.echo(f"{axis} = {fixed(pos, 4, sign=False)} {unit}")
 
 
 def jog_with_pendant(m, axis: str, step: float, speed: float | None, pendant=None) -> None:
@@ -58,6 +59,6 @@ def jog_with_pendant(m, axis: str, step: float, speed: float | None, pendant=Non
                 except SafetyError as exc:
                     typer.secho(str(exc), fg=typer.colors.YELLOW)
                     continue
-                typer.echo(f"{axis} = {pos:.4f} {unit}")
+                typer.echo(f"{axis} = {fixed(pos, 4, sign=False)} {unit}")
     finally:
         pendant.close()

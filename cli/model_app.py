@@ -55,7 +55,7 @@ def train(
     config: Annotated[
         Optional[Path],
         typer.Option(
-            help="A model TOML: preset, [model] and [train] tables (docs/model.md). Options given here win. "
+            help="A model TOML: preset, \\[model] and \\[train] tables (docs/model.md). Options given here win. "
             "Default: none (the preset)."
         ),
     ] = None,
@@ -302,7 +302,9 @@ def _numbers(text: str, n: int, what: str, limits: list[tuple[float, str]]) -> l
 @generate_app.command()
 @one_line_errors
 def generate(
-    checkpoint: Annotated[Path, typer.Option(help="A run directory written by `train`.")],
+    checkpoint: Annotated[
+        Path, typer.Option(help="A run directory written by `train --out DIR`: DIR, or DIR/checkpoint as train prints.")
+    ],
     out: Annotated[Path, typer.Option(help="The generated frame (PNG); with --split, a folder of PNGs.")],
     object_image: Annotated[
         Optional[str],
@@ -478,7 +480,9 @@ evaluate_app = typer.Typer(add_completion=False)
 @evaluate_app.command()
 @one_line_errors
 def evaluate(
-    checkpoint: Annotated[Path, typer.Option(help="A run directory written by `train`.")],
+    checkpoint: Annotated[
+        Path, typer.Option(help="A run directory written by `train --out DIR`: DIR, or DIR/checkpoint as train prints.")
+    ],
     split: Annotated[
         Path,
         typer.Option(help="The split directory; its test parts are evaluated (test, and test_object if it has one)."),
@@ -551,6 +555,7 @@ def evaluate(
     physics render and the paper's table."""
     import torch
 
+    from model.checkpoint import run_folder
     from model.evaluate import SweepOptions, evaluate_parts, report
     from model.threads import set_threads
 
@@ -587,7 +592,9 @@ def evaluate(
                 f"PSNR {r.psnr:5.2f}{mk}  {r.seconds_per_image:.4f} s/image"
             )
     parts = ", ".join(ev.part for ev in evs)
-    title = f"Evaluation of {checkpoint.resolve().name} on {split.resolve().name} ({parts})"  # names, not paths
+    title = (
+        f"Evaluation of {run_folder(checkpoint).resolve().name} on {split.resolve().name} ({parts})"  # names, not paths
+    )
     typer.echo(f"report: {report(evs, out, title=title)}")
 
 
@@ -615,7 +622,13 @@ def compare(
     ] = None,
     preset: Annotated[Optional[str], typer.Option(help="tiny or paper (default: the config's, else tiny).")] = None,
     image_size: Annotated[Optional[int], typer.Option(help="Image side in px (default: the preset's).", min=8)] = None,
-    steps: Annotated[Optional[int], typer.Option(help="Training steps of every run (default 2000).", min=1)] = None,
+    steps: Annotated[
+        Optional[str],
+        typer.Option(
+            help="Training steps of every run (default 2000); several, comma-separated (400,1200): each candidate "
+            "at each, a setting of its own named 'CANDIDATE @ N steps'."
+        ),
+    ] = None,
     batch_size: Annotated[Optional[int], typer.Option(help="Images per step (default 16).", min=1)] = None,
     lr: Annotated[Optional[float], typer.Option(help="Adam learning rate (default: the preset's).", min=0.0)] = None,
     settings: Annotated[
@@ -666,6 +679,9 @@ def compare(
 
     threads_line = set_threads(threads)
     cands = [Candidate.parse(c) for c in candidate]
+    step_list = _step_counts(steps)
+    if len(step_list) > 1:
+        cands = [c.with_steps(n) for c in cands for n in step_list]
     try:
         seed_list = [int(s) for s in seeds.split(",") if s.strip()]
     except ValueError:
@@ -680,7 +696,7 @@ def compare(
         base, train_fields = make_preset(preset or "tiny"), dict(PRESET_TRAINING.get(preset or "tiny", {}))
     if image_size is not None:
         base = dataclasses.replace(base, image_size=image_size)
-    given = {"steps": steps, "batch_size": batch_size, "lr": lr}
+    given = {"steps": step_list[0] if step_list else None, "batch_size": batch_size, "lr": lr}
     train_fields = {**train_fields, "sample_every": 0, **{k: v for k, v in given.items() if v is not None}}
     train_fields.setdefault("checkpoint_every", train_fields.get("steps", 2000))
     sensor = load_profile(profile) if profile is not None else None
@@ -708,7 +724,11 @@ def compare(
     context = {
         "split": data.resolve().name,
         "training": f"{base.image_size} px, widths {list(base.block_out_channels)}, "
-        + ", ".join(f"{k} {v}" for k, v in train_fields.items() if k in ("steps", "batch_size", "lr"))
+        + ", ".join(
+            f"{k} {','.join(map(str, step_list)) if k == 'steps' and len(step_list) > 1 else v}"
+            for k, v in train_fields.items()
+            if k in ("steps", "batch_size", "lr")
+        )
         + "; the seed sets the initial weights, the data order and the noise",
         "evaluation": f"{', '.join(f'{s}:{n}' for s, n in pairs)}, noise seed 0, "
         + (f"at most {limit} frames per part" if limit else "every frame of each part")
@@ -723,6 +743,19 @@ def compare(
         context=context,
     )
     typer.echo(f"comparison: {path}")
+
+
+def _step_counts(text: str | None) -> list[int]:
+    """compare --steps: one or more whole numbers >= 1, comma-separated ([] when not given)."""
+    if text is None:
+        return []
+    try:
+        counts = [int(v) for v in text.split(",") if v.strip()]
+    except ValueError:
+        counts = []
+    if not counts or min(counts) < 1 or len(set(counts)) != len(counts):
+        raise typer.BadParameter(f"--steps: expected different whole numbers >= 1, comma-separated, got {text!r}")
+    return counts
 
 
 def main() -> None:

@@ -8,17 +8,22 @@ from pathlib import Path
 import typer
 from rich.table import Table
 
+from cli.options import fixed
 from cli.run_display import output_console
 from common.errors import ConfigError, ToolError
 
 console = output_console()
 
 
-# What the frames take on disk against raw (acquisition/schema.py, bench/storage_bench.py): the simulated
-# rig writes Blosc (0.66-0.77 of raw on simulated frames: a 5,783-frame sphere10mm run, 1.14 GB raw, is
-# about 0.76 GB), a camera's frames HTJ2K (0.24-0.28 of raw on real GelSight frames).
-SIM_RATIO = (0.66, 0.77)
+# What a run file's frames take on disk against raw (acquisition/schema.py, bench/storage_bench.py): the
+# simulated rig writes Blosc, whose ratio depends on the sensor and the object, measured on whole
+# `rig run-protocol NAME --sim` files at 0.1 mm/s (723 frames) and 0.5 mm/s (273): rgb 0.62-0.79 (smooth
+# indenters 0.62-0.67, the texture boards 0.76-0.79), rgb_markers 0.75-0.86 (boards the most), white_markers
+# 0.66-0.71; the default-speed sphere10mm run (5,783 frames) 0.63. A camera's frames are HTJ2K (0.24-0.28
+# of raw on real GelSight frames).
+SIM_RATIO = {"rgb": (0.60, 0.80), "rgb_markers": (0.73, 0.88), "white_markers": (0.64, 0.74)}
 CAMERA_RATIO = (0.24, 0.28)
+STREAM_BYTES_PER_S = 25 * 64  # the simulated gauge's stream: samples/s x (7 float64 + a digest)
 FRAME_PX = 256
 
 
@@ -27,20 +32,28 @@ def disk_estimate(plan, simulated: bool, frame_px: int = FRAME_PX) -> tuple[int,
     from acquisition.executor import disk_bytes
 
     raw = disk_bytes(plan, (frame_px, frame_px, 3))
-    low, high = SIM_RATIO if simulated else CAMERA_RATIO
+    sensor = getattr(getattr(plan, "protocol", None), "sensor", "rgb")
+    low, high = SIM_RATIO.get(sensor, (0.60, 0.88)) if simulated else CAMERA_RATIO
     where = "the simulated rig's frames, Blosc" if simulated else "camera frames, HTJ2K"
+    # beside the frames: the reference frame and the object image (stored whole), and on the simulated rig
+    # its full-rate wrench stream with its digests (measured 15-25 samples/s, 64 bytes each)
+    fixed = 2 * frame_px * frame_px * 3 + (int(STREAM_BYTES_PER_S * plan.total_duration_s) if simulated else 0)
     text = (
-        f"about {_sizes(low * raw, high * raw)} on disk ({where}; {_sizes(raw)} of raw frames at {frame_px}x{frame_px})"
+        f"about {_sizes(low * raw + fixed, high * raw + fixed)} on disk ({where}; {_sizes(raw)} of raw frames at "
+        f"{frame_px}x{frame_px})"
     )
-    return raw, int(high * raw), text
+    return raw, int(high * raw + fixed), text
 
 
 def _sizes(low: float, high: float | None = None) -> str:
     """'751–876 MB', '1.14 GB'."""
     unit, scale, digits = ("GB", 1e9, 2) if (high or low) >= 1e9 else ("MB", 1e6, 0)
-    if high is None:
-        return f"{low / scale:.{digits}f} {unit}"
-    return f"{low / scale:.{digits}f}–{high / scale:.{digits}f} {unit}"
+    if unit == "MB" and (high or low) < 10e6:
+        digits = 1  # "about 3.9–4.7 MB", not "4–5 MB" nor "4–4 MB"
+    a = f"{low / scale:.{digits}f}"
+    if high is None or f"{high / scale:.{digits}f}" == a:  # both ends the same when rounded: one number
+        return f"{a} {unit}"
+    return f"{a}–{high / scale:.{digits}f} {unit}"
 
 
 def fmt_duration(s: float) -> str:
@@ -196,7 +209,7 @@ def run_protocol(
         check_new_run_path(out)  # before any device opens: a refused --out moves nothing
     path = resume or out
     # printed once the rig (or the dry run's check) is past every refusal: an error stays one line
-    origin_line = f"origin: x,y,z,theta = {','.join(f'{v:g}' for v in origin)} ({said})"
+    origin_line = f"origin: x,y,z,theta = {','.join(fixed(v, 4, sign=False) for v in origin)} ({said})"
     if dry_run:
         checked, config_path = _dry_run(protocol, plan, origin_map, sim, config, sensor_profile)
         console.print(origin_line, highlight=False)

@@ -38,6 +38,7 @@ from acquisition.run_storage import frames_codec
 from acquisition.run_writer import RunHeader
 from acquisition.whole_run import check_new_output, whole_run
 from acquisition.writer_lock import RunFileError
+from common.wording import signed, status_text
 
 # The merged file keeps the first source's reference frame (the no-contact background of the physics
 # row and of `preview --condition`), so every other source's must be the same up to sensor noise:
@@ -168,7 +169,8 @@ def _write(paths: Sequence[str | Path], sources: list[RunReader], out: Path, gap
     origins = [_origin(r) for r in sources]
     lines = [
         f"{Path(p).resolve()}: {r.n} frames, status {r.status}, t_frame_s and stream {off_t:+.6f} s, "
-        f"t_capture_s {off_c:+.6f} s, contact_origin {origin}, reference frame within {gap:.1f} grey levels"
+        f"t_capture_s {off_c:+.6f} s, contact_origin {_origin_text(origin)}, "
+        f"reference frame within {gap:.1f} grey levels"
         for p, r, (off_t, off_c), origin, gap in zip(paths, sources, offsets, origins, gaps)
     ]
     header = RunHeader(
@@ -215,9 +217,20 @@ def _write(paths: Sequence[str | Path], sources: list[RunReader], out: Path, gap
                 writer.append(r.frame(i), stream=stream if i == 0 else None, **row)
                 k += 1
         statuses = [r.status for r in sources]
-        bad = [f"{p}: {s} ({r.reason or 'no reason'})" for p, s, r in zip(paths, statuses, sources) if s != "complete"]
+        bad = [f"{p}: {status_text(s, r.reason or 'no reason')}" for p, s, r in zip(paths, statuses, sources)]
+        bad = [line for line, s in zip(bad, statuses) if s != "complete"]
         warnings = [int(r.f[S.SIM_SOLVER_WARNINGS][()]) for r in sources if S.SIM_SOLVER_WARNINGS in r.f]
         if warnings and all(w >= 0 for w in warnings):
             writer.set_sim_solver_warnings(sum(warnings))
         writer.set_status("complete" if not bad else "aborted", "; ".join(bad))
     return total
+
+
+def _origin_text(origin) -> str:
+    """A run's contact origin as x,y,z,theta to 4 decimals (never e-notation nor -0.0000); "none" without one."""
+    if origin is None:
+        return "none"
+    try:
+        return "(" + ", ".join(signed(float(v), 4, sign="") for v in origin) + ")"
+    except (TypeError, ValueError):
+        return str(origin)

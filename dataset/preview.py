@@ -10,6 +10,7 @@ measures by how much.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -19,6 +20,7 @@ import numpy as np
 from acquisition import schema as S
 from acquisition.run_reader import RunReader
 from acquisition.writer_lock import RunFileError
+from common.wording import signed
 from dataset.condition import background_bgr, place_object
 
 COLS = 6
@@ -95,11 +97,25 @@ def object_mask(placed: np.ndarray, background: tuple[float, float, float]) -> n
     return (diff > OBJECT_LEVELS).astype(np.float32)
 
 
+@functools.lru_cache(maxsize=1)
+def _font():
+    """matplotlib's DejaVu Sans at 11 px: it has · θ °, which OpenCV's Hershey fonts lack ("Nmm")."""
+    from matplotlib import font_manager
+    from PIL import ImageFont
+
+    return ImageFont.truetype(font_manager.findfont("DejaVu Sans"), 11)
+
+
 def _label(img: np.ndarray, lines: list[str], top_px: int = 0) -> None:
+    """White text with a dark halo, 13 px a line, drawn into ``img`` (BGR) in place."""
+    from PIL import Image, ImageDraw
+
+    pil = Image.fromarray(np.ascontiguousarray(img[:, :, ::-1]))
+    draw = ImageDraw.Draw(pil)
     for row, text in enumerate(lines):
-        at = (4, top_px + 13 + 13 * row)
-        cv2.putText(img, text, at, cv2.FONT_HERSHEY_SIMPLEX, 0.36, (0, 0, 0), 3, cv2.LINE_AA)  # a dark halo
-        cv2.putText(img, text, at, cv2.FONT_HERSHEY_SIMPLEX, 0.36, (255, 255, 255), 1, cv2.LINE_AA)
+        at = (4, top_px + 2 + 13 * row)
+        draw.text(at, text, fill=(255, 255, 255), font=_font(), stroke_width=2, stroke_fill=(0, 0, 0))
+    img[:] = np.asarray(pil)[:, :, ::-1]
 
 
 def _overlay(img: np.ndarray, mask: np.ndarray) -> np.ndarray:
@@ -147,10 +163,13 @@ def contact_sheet(
             img = cv2.resize(frame, (tile_px, tile_px), interpolation=cv2.INTER_AREA)
             lines = [
                 f"#{i}",
-                f"F {w[0]:+.2f} {w[1]:+.2f} {w[2]:+.2f} N",
-                f"M {w[3]:+.0f} {w[4]:+.0f} {w[5]:+.1f} Nmm",
+                f"F {signed(w[0], 2)} {signed(w[1], 2)} {signed(w[2], 2)} N",
+                f"M {signed(w[3], 0)} {signed(w[4], 0)} {signed(w[5], 1)} N·mm",
             ]
-            bottom = [f"x{pose[0]:+.2f} y{pose[1]:+.2f} z{pose[2]:+.2f} mm", f"th {pose[3]:+.1f} deg"]
+            bottom = [
+                f"x {signed(pose[0], 2)} y {signed(pose[1], 2)} z {signed(pose[2], 2)} mm",
+                f"θ {signed(pose[3], 1)}°",
+            ]
             tile = Tile(int(i), pose, w)
             if obj is not None and reference is not None:
                 if obj.shape[:2] != frame.shape[:2]:

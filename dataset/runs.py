@@ -23,6 +23,7 @@ from acquisition.frame_checks import MOVED, check_frames, stream_findings
 from acquisition.run_layout import attr_problems, decode_phases, field_problems
 from acquisition.run_reader import RunReader, open_for_reading
 from acquisition.writer_lock import RunFileError
+from common.wording import reason_only
 
 FRAME_BATCH = 32  # frames read at once by validate: ~6 MB at 256x256
 
@@ -159,7 +160,7 @@ def _check_open_run(f: h5py.File, out: Check, max_skew_s: float, sample_frames: 
     status, reason, findings = C.status_findings(f, sound)
     out.findings += findings
     if S.STATUS in sound and status in S.STATUSES and status != "complete":
-        out.findings.append(f"{S.STATUS}: {status!r}, not complete ({reason or 'no reason'})")
+        out.findings.append(f"{S.STATUS}: {status!r}, not complete ({reason_only(status, reason) or 'no reason'})")
         if not reason and S.STATUS_REASON in sound and status != "running":
             out.findings.append(f"{S.STATUS_REASON}: empty, but a run that stopped early must say why")
     n = f[S.FRAMES].shape[0] if S.FRAMES in sound else 0

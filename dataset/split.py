@@ -31,6 +31,7 @@ from acquisition import schema as S
 from acquisition.run_identity import identity_of
 from common.errors import ConfigError
 from common.table import finite_number
+from common.wording import status_text
 from dataset.runs import RunSummary, open_run, summary_of
 from dataset.split_manifest import MANIFEST, SplitError, check_unchanged, load_split
 from dataset.split_parts import allocate, check_honoured, named_runs, parts_of_run
@@ -214,7 +215,7 @@ def make_split(
     for s in summaries:
         if s.status != "complete":
             message = (
-                f"{s.path}: run is {s.status} ({s.reason or 'no reason recorded'}), "
+                f"{s.path}: run is {status_text(s.status, s.reason or 'no reason recorded')}, "
                 f"{s.frames}/{s.frames_planned} frames"
             )
             if not allow_incomplete:

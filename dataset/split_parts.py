@@ -31,15 +31,24 @@ def allocate(n: int, ratios: tuple[float, ...], what: str = "frame") -> list[int
 
 
 def named_runs(paths: Sequence[str | Path], named: Sequence[str | Path], option: str) -> set[int]:
-    """The indices in ``paths`` of the runs ``named`` (as given or the same file); SplitError for one
-    that is not among them."""
+    """The indices in ``paths`` of the runs ``named``: as given, the same file, or the file name (with or
+    without .h5) of exactly one of them; SplitError for one that is none of these or names several."""
     resolved = [Path(p).resolve() for p in paths]
     out = set()
     for name in named:
         target = Path(name).resolve()
-        if target not in resolved:
+        if target in resolved:
+            out.add(resolved.index(target))
+            continue
+        by_name = [i for i, p in enumerate(resolved) if str(name) in (p.name, p.stem)]
+        if len(by_name) > 1:
+            raise SplitError(
+                f"{option} {name}: names {len(by_name)} of the runs given to split "
+                f"({', '.join(str(paths[i]) for i in by_name)}); give its path"
+            )
+        if not by_name:
             raise SplitError(f"{option} {name}: not one of the runs given to split ({', '.join(map(str, paths))})")
-        out.add(resolved.index(target))
+        out.add(by_name[0])
     return out
 
 

@@ -37,6 +37,17 @@ def folder(run_dir: str | Path) -> Path:
     return Path(run_dir) / "checkpoint"
 
 
+def run_folder(path: str | Path) -> Path:
+    """The training folder (``train --out DIR``) that ``path`` names: DIR itself, DIR/checkpoint, or a file
+    in it (DIR/checkpoint/state.json), so that `--checkpoint` takes whichever a user copies."""
+    p = Path(path)
+    if p.is_file() and p.parent.name == "checkpoint":
+        return p.parent.parent
+    if p.name == "checkpoint" and (p / STATE).is_file() and not (folder(p) / STATE).is_file():
+        return p.parent
+    return p
+
+
 def write_tensors(ck: Path, name: str, tensors: dict[str, torch.Tensor]) -> None:
     """Write atomically: a crash mid-write leaves the previous file, never half a file."""
     tmp = ck / (name + ".tmp")

@@ -36,6 +36,11 @@ class Candidate:
 
     name: str
     fields: tuple[tuple[str, str], ...]
+    steps: int | None = None  # training steps of this setting (compare --steps 400,1200); None: every run's
+
+    def with_steps(self, steps: int) -> "Candidate":
+        """This setting trained for ``steps`` steps, named so (its own row and folder)."""
+        return Candidate(f"{self.name} @ {steps} steps", self.fields, steps)
 
     @classmethod
     def parse(cls, text: str) -> "Candidate":
@@ -104,7 +109,8 @@ def train_one(
     from model.trainer import TrainConfig
 
     cfg = candidate.config(base)
-    train_cfg = TrainConfig(**{**train_fields, "seed": seed})
+    steps = {} if candidate.steps is None else {"steps": candidate.steps, "checkpoint_every": candidate.steps}
+    train_cfg = TrainConfig(**{**train_fields, **steps, "seed": seed})
     state = C.folder(run_dir) / C.STATE
     if state.is_file():
         meta = json.loads(state.read_text())
@@ -196,10 +202,24 @@ def summary(results: list[Result]) -> dict:
             entry["seeds"] = [r.seed for r in results if r.candidate == name and part in r.parts]
             entry["per_seed_mse"] = [row["mse"] for row in best]
             entry["setting"] = best[0]["setting"] if best else ""
+            # near the contact (model/contact_scores.py): the same setting's rows there, and its light-load ratio
+            near = [_near_of(p, row["setting"]) for p, row in zip(mine, best)]
+            entry["near"] = {m: _spread([n[m] if n else None for n in near]) for m in METRICS}
+            entry["light_ratio"] = _spread([_light_of(p, row["setting"]) for p, row in zip(mine, best)])
             rows[name] = entry
         first = next(r.parts[part] for r in results if part in r.parts)
         fz_first = [s for s in first.get("force_sweep") or [] if s["component"] == "Fz"]
+        reference, reference_source = _reference(fz_first, first)
+        near_first = first.get("near_contact") or {}
         out[part] = {
+            # the one exponent every run's own report holds its model to (model/sweep_report.py, target_exponent)
+            "reference_exponent": reference,
+            "reference_source": reference_source,
+            "simulated": bool(first.get("simulated")),
+            "near_note": near_first.get("note", ""),
+            "near_baselines": [b for b in near_first.get("baselines") or [] if b]
+            + ([near_first["physics_render"]] if near_first.get("physics_render") else []),
+            "light_baselines": [row for row in first.get("light_load") or [] if not row.get("model")],
             # the calibrated render's k at the sweep's poses (the same poses and renders for every model)
             "render_exponent": _mean([s.get("render_area_exponent") for s in fz_first]),
             # the real frames' k at the same poses (references matched by pose and force), where the data has them:
@@ -212,6 +232,47 @@ def summary(results: list[Result]) -> dict:
             "frames": first["model"][0]["images"] if first.get("model") else 0,
         }
     return out
+
+
+def _near_of(part: dict, setting: str) -> dict | None:
+    """The near-contact row of this model's ``setting`` in a saved part (None: not scored there)."""
+    for row in (part.get("near_contact") or {}).get("model") or []:
+        if row and row.get("setting") == setting:
+            return row
+    return None
+
+
+def _light_of(part: dict, setting: str) -> float | None:
+    for row in part.get("light_load") or []:
+        if row.get("model") and row.get("method") == setting:
+            return row.get("ratio")
+    return None
+
+
+def _reference(fz: list[dict], part: dict) -> tuple[float | None, str]:
+    """(the reference exponent, how it was measured) as each run's report names it; (None, why) without one."""
+    from model.sweep_measures import FramesExponent
+    from model.sweep_report import target_exponent
+
+    fe = part.get("real_frames_exponent") or {}
+    frames = None
+    if fe:  # as saved (json: nan as null), any field missing from an older report read as unknown
+        values: dict = {f.name: fe.get(f.name) for f in dataclasses.fields(FramesExponent)}
+        for key, value in values.items():
+            if value is None:
+                values[key] = "" if key == "source" else 0 if key == "frames" else float("nan")
+        frames = FramesExponent(**values)
+    k, source, why_not = target_exponent(
+        [{**s, **{key: float("nan") if s.get(key) is None else s[key] for key in _EXPONENT_KEYS}} for s in fz],
+        frames,
+        bool(part.get("simulated")),
+    )
+    if not math.isfinite(k):
+        return None, why_not or "no reference exponent"
+    return k, source + (f" (the real frames' exponent is {why_not})" if why_not else "")
+
+
+_EXPONENT_KEYS = ("real_area_exponent", "render_area_exponent")
 
 
 def _mean(values) -> float | None:

@@ -67,7 +67,11 @@ def force_verdict(entry: dict) -> str:
     fe = entry.get("real_frames_exponent") or {}
     low, k_real = fe.get("low"), fe.get("k")
     at_poses = entry.get("real_exponent_at_poses")
-    if at_poses is not None and math.isfinite(at_poses):
+    if "reference_exponent" in entry:  # the one reference each run's report names (model/compare.py, _reference)
+        if entry["reference_exponent"] is None:
+            return f"**Force verdict**: no reference exponent to hold the settings to ({entry['reference_source']})."
+        target, source = float(entry["reference_exponent"]), entry["reference_source"]
+    elif at_poses is not None and math.isfinite(at_poses):
         target, source = float(at_poses), "the real frames at the sweep's poses"
     elif k_real is not None and low is not None and low > 0:
         target, source = float(k_real), "the real frames"
@@ -86,10 +90,36 @@ def force_verdict(entry: dict) -> str:
         ok = target and abs(k.mean / target - 1) <= EXPONENT_TOLERANCE
         parts.append(f"`{name}` {k.text('{:+.2f}')} ({'within' if ok else 'outside'})")
     return (
-        f"**Force verdict**: k of area ∝ Fz^k held to {target:+.2f} ± {EXPONENT_TOLERANCE:.0%} from {source}: "
-        + "; ".join(parts)
-        + "."
+        f"**Force verdict**: k of area ∝ Fz^k held to the reference exponent {target:+.2f} ± "
+        f"{EXPONENT_TOLERANCE:.0%}, {source}: " + "; ".join(parts) + "."
     )
+
+
+def near_table(entry: dict) -> list[str]:
+    """Each setting's metrics near the contact over its seeds and its light-load contact ratio, beside the
+    baselines' (nothing for a summary saved before reports had them)."""
+    if not entry.get("near_note"):
+        return []
+    lines = [
+        "",
+        f"Near the contact: each metric {entry['near_note']}. Light load: the contact area over the lightest "
+        "frames against the real frames' (1.00 the same size), per seed.",
+        "",
+        "| setting | MSE near | MAE near | SSIM near | PSNR near | light-load contact ratio |",
+        "|---|---|---|---|---|---|",
+    ]
+    for name, c in entry["candidates"].items():
+        if "near" not in c:
+            continue
+        cells = " | ".join(_cell(c["near"][m], FORMATS[m]) for m in METRICS)
+        lines.append(f"| `{name}` | {cells} | {_cell(c['light_ratio'], '{:.2f}')} |")
+    light = {row["method"]: row for row in entry.get("light_baselines", [])}
+    for row in entry.get("near_baselines", []):
+        ratio = light.get(row["setting"], {}).get("ratio")
+        ratio_text = "—" if ratio is None or not math.isfinite(ratio) else f"{ratio:.2f}"
+        cells = " | ".join(_baseline_cell(row, m) for m in METRICS)
+        lines.append(f"| baseline: {row['setting']} | {cells} | {ratio_text} |")
+    return lines
 
 
 def write_compare_report(summary: dict, out: Path, *, title: str, context: dict[str, str]) -> Path:
@@ -132,6 +162,7 @@ def write_compare_report(summary: dict, out: Path, *, title: str, context: dict[
             name = row["setting"]
             cells = " | ".join(_baseline_cell(row, m) for m in METRICS)
             lines.append(f"| baseline: {name} | — | {cells} | — | — | — |")
+        lines += near_table(entry)
         lines += ["", force_verdict(entry)]
         fe = entry.get("real_frames_exponent")
         if fe and fe.get("k") is not None:

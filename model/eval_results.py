@@ -55,6 +55,7 @@ class Evaluation:
     references: list[np.ndarray] = field(default_factory=list)  # each example's no-contact frame
     part: str = "test"
     objects: list[str] = field(default_factory=list)  # the objects whose frames the part holds
+    test_runs: list[str] = field(default_factory=list)  # the split's runs named for the test part (--test-runs)
     unseen_objects: bool = False  # none of them is in the training part (a --by object split's test part)
     sweeps: list = field(default_factory=list)  # force_sweep.PoseSweep, one per (pose, component)
     sweep_summary: list[dict] = field(default_factory=list)  # force_sweep.summarise of each
@@ -68,3 +69,9 @@ class Evaluation:
     # texture boards: {board: {row: {measure: (mean, low, high)} or why not scored}} (model/texture_eval.py)
     texture: dict = field(default_factory=dict)
     texture_examples: dict = field(default_factory=dict)  # board → (frames by label, contact mask, band)
+    # model/contact_scores.py: each row's metrics near the contact (None: no frame's contact seen) ...
+    near_rows: list[Row | None] = field(default_factory=list)  # this model's, one per setting
+    near_baselines: list[Row | None] = field(default_factory=list)  # one per baseline
+    near_physics: Row | None = None
+    near_note: str = ""  # the region, its threshold and how many frames had one; or why none
+    light_load: list[dict] = field(default_factory=list)  # contact_scores.light_load of every row

@@ -24,11 +24,13 @@ from acquisition import schema as S
 from acquisition.run_reader import RunReader
 from acquisition.schema import RIG_CONFIG_MARK
 from common.eta import Eta
+from common.wording import signed
 from dataset.torch_dataset import TactileDataset, spread, uint8_tensor_to_image
 from model.eval_results import PAPER_ROWS, PHYSICS, Evaluation, Row
 from model.inference import TrainedModel
 from model.markers import marker_error
 from model.metrics import image_metrics
+from model.sweep_references import RunData
 
 __all__ = ["PAPER_ROWS", "PHYSICS", "Evaluation", "Row", "evaluate", "evaluate_parts", "report"]
 
@@ -151,6 +153,7 @@ def evaluate_part(
     ev.objects = sorted({str(data.manifest["runs"][int(r)].get("object", "?")) for r in np.unique(data.rows[:, 0])})
     trained_on = set(data.manifest.get("objects", {}).get("train", []))
     ev.unseen_objects = part != "train" and bool(trained_on) and not trained_on & set(ev.objects)
+    ev.test_runs = [str(r) for r in data.manifest.get("test_runs") or []]
     ev.examples["object at pose"] = [uint8_tensor_to_image(items[i]["condition"]) for i in ex]
     ev.examples["real"] = [real[i] for i in ex]
     ev.references = _references(data, [items[i]["run"] for i in ex], model.cfg.image_size)
@@ -171,7 +174,7 @@ def evaluate_part(
             rows = np.array([[it["run"], it["frame"]] for it in items])
             poses = np.stack([it["pose"].numpy() for it in items])
             for r in runs:
-                log(f"physics render of {data.runs[r]}: sensor profile {sources[r]}")
+                log(f"baseline physics render of {data.runs[r]}: sensor profile {sources[r]}")
             rendered, seconds = render_frames(data.runs, rows, poses, model.cfg.image_size, sensor)
             ev.baseline = _score(PHYSICS, real, rendered, seconds, markers)
             by_row[PHYSICS] = rendered
@@ -207,8 +210,17 @@ def evaluate_part(
         ev.examples[setting] = [made[i] for i in ex]
         by_row[f"this model ({setting})"] = made
     _texture(ev, data, items, by_row, model.cfg.image_size, log)
+    loaded: dict[int, RunData] = {}
+
+    def run(r: int) -> RunData:
+        if r not in loaded:
+            loaded[r] = RunData.load(data.runs[r], model.cfg.image_size)
+        return loaded[r]
+
+    blur = max(0.5, model.cfg.image_size / 64) * (2.5 if markers else 1.0)
+    _contact_scores(ev, items, real, by_row, run, blur)
     if sweep is not None:
-        _force_sweep(ev, model, split_dir, data, items, sweep, seed, markers, profile, log, clock)
+        _force_sweep(ev, model, split_dir, data, items, sweep, seed, markers, profile, log, clock, run, blur)
     else:
         ev.sweep_note = "not asked for (--no-force-sweep)"
     return ev
@@ -260,24 +272,49 @@ def _profiles(data: TactileDataset, runs: list[int], sensor) -> dict[int, str]:
     return out
 
 
-def _force_sweep(ev, model, split_dir, data, items, opts: SweepOptions, seed, markers, profile, log, clock) -> None:
+def _contact_scores(ev: Evaluation, items: list, real: list, by_row: dict, run, blur: float) -> None:
+    """Every row's metrics near the contact and its light-load contact size (model/contact_scores.py)."""
+    from model import contact_scores as C
+
+    contacts = C.find_contacts(
+        real,
+        [run(int(it["run"])).no_contact for it in items],
+        [run(int(it["run"])).mm_per_px for it in items],
+        [float(run(int(it["run"])).wrench[int(it["frame"]), 2]) for it in items],
+        blur_px=blur,
+    )
+    ev.near_rows = [C.near_row(r.setting, real, by_row[f"this model ({r.setting})"], contacts) for r in ev.rows]
+    ev.near_baselines = [C.near_row(r.setting, real, by_row[f"baseline: {r.setting}"], contacts) for r in ev.baselines]
+    if ev.baseline is not None:
+        ev.near_physics = C.near_row(PHYSICS, real, by_row[PHYSICS], contacts)
+    ev.near_note = (
+        f"within {contacts.radius_mm:g} mm of the contact the real frame shows (its change from the run's no-contact "
+        f"frame above {contacts.threshold:.1f} of 0–255 after a Gaussian blur of σ {blur:g} px), the same pixels for "
+        f"every method; {contacts.seen} of {len(real)} frames show a contact"
+        + ("" if contacts.seen == len(real) else " (the others have no near-contact value)")
+    )
+    named = [(f"this model ({r.setting})", r.setting) for r in ev.rows]
+    named += [(f"baseline: {r.setting}", r.setting) for r in ev.baselines]
+    named += [(PHYSICS, PHYSICS)] if ev.baseline is not None else []
+    for key, label in named:
+        row = C.light_load(label, by_row[key], contacts)
+        if row is not None:
+            row["model"] = key.startswith("this model")
+            ev.light_load.append(row)
+
+
+def _force_sweep(
+    ev, model, split_dir, data, items, opts: SweepOptions, seed, markers, profile, log, clock, run, blur
+) -> None:
     """The force-response check at ``opts.poses`` poses of the part (model/force_sweep.py)."""
     from dataset.split import PERCENTILES
     from model import force_sweep as F
     from model import sweep_measures as M
-    from model.sweep_references import RunData, resize
+    from model.sweep_references import resize
 
     pct = data.manifest.get("wrench_percentiles") or _train_percentiles(split_dir, data, PERCENTILES)
     ranges, ev.sweep_skipped = F.swept_ranges(pct, opts.components)
-    runs: dict[int, RunData] = {}
-
-    def run(r: int) -> RunData:
-        if r not in runs:
-            runs[r] = RunData.load(data.runs[r], model.cfg.image_size)
-        return runs[r]
-
     rows = np.array([[it["run"], it["frame"]] for it in items])
-    blur = max(0.5, model.cfg.image_size / 64) * (2.5 if markers else 1.0)
     real = [uint8_tensor_to_image(it["tactile"]) for it in items]
     backgrounds = [run(int(it["run"])).no_contact for it in items]
     threshold, peak = M.contact_threshold(real, backgrounds, blur)
@@ -423,10 +460,10 @@ def _label(data: TactileDataset, item: dict) -> str:
     """An example row's condition in numbers: the wrench (N, N·mm) and the pose (mm, deg)."""
     w = item["wrench"].numpy() * data.std + data.mean
     x, y, z, theta = (float(v) for v in item["pose"].numpy())
-    # ASCII only: OpenCV's figure text has no glyphs for · θ °
     return (
-        f"Fz {w[2]:.2f} N  Fx {w[0]:+.2f}  Fy {w[1]:+.2f}  Mz {w[5]:+.1f} Nmm | "
-        f"x {x:+.2f}  y {y:+.2f}  z {z:+.2f} mm  theta {theta:+.1f} deg"
+        f"Fz {signed(w[2], 2, sign='')} N  Fx {signed(w[0], 2)} N  Fy {signed(w[1], 2)} N  "
+        f"Mz {signed(w[5], 1)} N·mm | x {signed(x, 2)}  y {signed(y, 2)}  z {signed(z, 2)} mm  "
+        f"θ {signed(theta, 1)}°"
     )
 
 
@@ -454,7 +491,7 @@ def _context(model: TrainedModel, data: TactileDataset, part: str, frames: int) 
             else ("; the physics channels rendered at the frame's measured pose" if cfg.uses_physics else "")
         )
         + (
-            "; denoises the frame's difference from the physics render (target physics_residual)"
+            "; denoises the frame's difference from its physics channels (target physics_residual)"
             if cfg.residual
             else ""
         ),

@@ -20,7 +20,11 @@ import re
 from dataclasses import asdict
 from pathlib import Path
 
+from model.contact_report import near_section
 from model.eval_results import PAPER_ROWS, Evaluation, Row
+from model.verdicts import compare_metric, metrics_verdict
+
+__all__ = ["compare_metric", "metrics_verdict", "write_report", "part_text", "strip_paths", "json_safe"]
 
 PART_TEXT = {
     "test": "unseen frames of the training objects",
@@ -35,6 +39,9 @@ def part_text(ev: Evaluation) -> str:
     """What the part holds, in words: a part none of whose objects was trained on says so."""
     if ev.unseen_objects:
         return PART_TEXT["test_object"]
+    if ev.part == "test" and ev.test_runs:
+        names = ", ".join(Path(r).name for r in ev.test_runs)
+        return f"the runs named for the test part (dataset split --test-runs: {names}), never trained on"
     return PART_TEXT.get(ev.part, "a part of the split")
 
 
@@ -73,67 +80,6 @@ def strip_paths(text: str) -> str:
     return _PATH.sub(lambda m: m.group(1), text)
 
 
-VERDICT_METRICS = (
-    ("mse", "MSE", False, "{:.2f}"),
-    ("mae", "MAE", False, "{:.2f}"),
-    ("ssim", "SSIM", True, "{:.3f}"),
-    ("psnr", "PSNR", True, "{:.2f}"),
-)
-
-
-def _with_ci(row: Row, key: str, fmt: str) -> str:
-    lo, hi = row.ci.get(key, (float("nan"), float("nan")))
-    value = fmt.format(getattr(row, key))
-    return f"{value} [{fmt.format(lo)}–{fmt.format(hi)}]" if math.isfinite(lo) and math.isfinite(hi) else value
-
-
-def compare_metric(model: Row, rival: Row, key: str, higher: bool) -> str:
-    """'better', 'worse' or 'tied' for ``model`` against ``rival`` on one metric: better or worse only
-    where their 95 % intervals do not overlap (an interval missing: tied)."""
-    lo, hi = model.ci.get(key, (float("nan"), float("nan")))
-    rlo, rhi = rival.ci.get(key, (float("nan"), float("nan")))
-    if not all(math.isfinite(v) for v in (lo, hi, rlo, rhi)) or not (hi < rlo or rhi < lo):
-        return "tied"
-    model_above = lo > rhi
-    return "better" if model_above == higher else "worse"
-
-
-def metrics_verdict(ev: Evaluation) -> str:
-    """The model (its setting best on MSE) against the best non-oracle baseline on each metric, metric by
-    metric: 'better' or 'worse' only where the 95 % intervals do not overlap, 'tied' otherwise. On
-    simulated frames the physics render is an oracle (it renders the very physics that made the frames):
-    said apart, never counted."""
-    if not ev.rows:
-        return "**Verdict**: no model row."
-    model = min(ev.rows, key=lambda r: r.mse)
-    oracle = ev.baseline if ev.simulated else None
-    fair = ev.baselines + ([ev.baseline] if ev.baseline is not None and oracle is None else [])
-    if not fair:
-        return f"**Verdict**: {model.setting}: MSE {_with_ci(model, 'mse', '{:.2f}')}; no baseline to compare with."
-    said = []
-    for key, name, higher, fmt in VERDICT_METRICS:
-        rivals = [b for b in fair if math.isfinite(getattr(b, key))]
-        if not math.isfinite(getattr(model, key)) or not rivals:
-            continue
-        rival = (max if higher else min)(rivals, key=lambda r: getattr(r, key))
-        word = compare_metric(model, rival, key, higher)
-        against = "with" if word == "tied" else "than"
-        said.append(
-            f"{name} **{word}** {against} {rival.setting} ({_with_ci(model, key, fmt)} against "
-            f"{_with_ci(rival, key, fmt)})"
-        )
-    note = ""
-    if oracle is not None:
-        note = (
-            f" The physics render is an oracle on simulated frames (MSE {_with_ci(oracle, 'mse', '{:.2f}')}): "
-            "shown, not counted."
-        )
-    return (
-        f"**Verdict**: {model.setting} ({model.images} frames) against the best baseline on each metric, better or "
-        "worse only where the 95 % intervals do not overlap: " + "; ".join(said) + "." + note
-    )
-
-
 def json_safe(value):
     """JSON without NaN: nan and inf become null."""
     if isinstance(value, float) and not math.isfinite(value):
@@ -165,6 +111,7 @@ def write_report(evs: list[Evaluation], out: str | Path, *, title: str) -> Path:
         lines += _part_section(ev, out, suffix)
         part_payload = {
             "objects": ev.objects,
+            "simulated": ev.simulated,
             "model": [asdict(r) for r in ev.rows],
             "baselines": [asdict(r) for r in ev.baselines],
             "physics_render": asdict(ev.baseline) if ev.baseline else None,
@@ -177,6 +124,13 @@ def write_report(evs: list[Evaluation], out: str | Path, *, title: str) -> Path:
             "force_sweep_note": ev.sweep_note,
             "real_frames_exponent": asdict(ev.frames_exponent) if ev.frames_exponent is not None else None,
             "texture": ev.texture,
+            "near_contact": {
+                "note": ev.near_note,
+                "model": [asdict(r) if r else None for r in ev.near_rows],
+                "baselines": [asdict(r) if r else None for r in ev.near_baselines],
+                "physics_render": asdict(ev.near_physics) if ev.near_physics else None,
+            },
+            "light_load": ev.light_load,
         }
         payload["parts"][ev.part] = part_payload
         if k == 0:  # the first part also at the top, where single-part reports kept it
@@ -228,7 +182,10 @@ def _part_section(ev: Evaluation, out: Path, suffix: str) -> list[str]:
     for r in ev.baselines:
         lines.append(_fmt_row(f"baseline: {r.setting}", r))
     if ev.baseline is not None:
-        words = "baseline: physics render (the simulator's mechanics + calibrated lighting at the measured pose)"
+        words = (
+            "baseline: physics render at the measured pose (the simulator's mechanics + calibrated lighting, "
+            "on the run's no-contact frame)"
+        )
         lines.append(_fmt_row(words, ev.baseline))
     if ev.profiles:
         lines += ["", "Sensor profile of the physics render, per run file:", ""]
@@ -242,6 +199,15 @@ def _part_section(ev: Evaluation, out: Path, suffix: str) -> list[str]:
             "it differs from them only by sensor noise and the friction history of earlier frames. Here it "
             "is an oracle, not a baseline; on frames from a real sensor it is the lighting-model baseline.",
         ]
+    conditioning = ev.context.get("conditioning", "")
+    if ev.baseline is not None and "physics" in conditioning:
+        where = "the depth where the simulator's contact gives the frame's Fz" if "Fz" in conditioning else "its pose"
+        lines += [
+            "",
+            "This row is not the image the model is conditioned on: the model's physics channels are the "
+            f"simulator's render at {where}, over the simulator's own background.",
+        ]
+    lines += near_section(ev)
     lines += [
         "",
         f"### Error against run time (`{ev.part}`)",

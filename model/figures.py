@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 from pathlib import Path
 
 import cv2
@@ -62,10 +63,22 @@ def _tile(img: np.ndarray) -> np.ndarray:
     return cv2.resize(img, (img.shape[1] * scale, img.shape[0] * scale), interpolation=cv2.INTER_NEAREST)
 
 
+@functools.lru_cache(maxsize=1)
+def _font():
+    """matplotlib's own DejaVu Sans at 12 px (it has · θ °, which OpenCV's Hershey fonts lack)."""
+    from matplotlib import font_manager
+    from PIL import ImageFont
+
+    return ImageFont.truetype(font_manager.findfont("DejaVu Sans"), 12)
+
+
 def _header(text: str, width: int) -> np.ndarray:
-    strip = np.full((22, width, 3), 255, np.uint8)
-    cv2.putText(strip, text[: max(4, width // 8)], (4, 15), cv2.FONT_HERSHEY_SIMPLEX, 0.4, (0, 0, 0), 1, cv2.LINE_AA)
-    return strip
+    """A 22 px white strip with ``text`` in black, cut to the ``width // 8`` characters ``wrapped`` allows."""
+    from PIL import Image, ImageDraw
+
+    strip = Image.new("RGB", (width, 22), (255, 255, 255))
+    ImageDraw.Draw(strip).text((4, 4), text[: max(4, width // 8)], fill=(0, 0, 0), font=_font())
+    return np.asarray(strip)[:, :, ::-1].copy()
 
 
 def samples_figure(columns: dict[str, list[np.ndarray]], path: Path, row_labels: list[str] | None = None) -> None:

@@ -82,7 +82,10 @@ def force_physics_cache(
     recorded: dict[int, tuple[np.ndarray, np.ndarray]] = {}
     notes: set[str] = set()
     step = max(1, len(rows) // 10)
-    log(f"physics render of {len(rows)} {part} frames at the depth each one's Fz implies, {size} px (cached)")
+    log(
+        f"physics channels of {len(rows)} {part} frames: rendered at the depth each one's Fz implies, {size} px"
+        " (cached)"
+    )
     for k, (run, frame) in enumerate(rows):
         run, frame = int(run), int(frame)
         if run not in renderers:
@@ -93,8 +96,8 @@ def force_physics_cache(
         pose, wrench = recorded[run][0][frame], recorded[run][1][frame]
         images[k] = render_at_force(renderers[run], pose, wrench, float(wrench[2]), size, notes)
         if (k + 1) % step == 0 or k + 1 == len(rows):
-            log(f"  physics render: {k + 1}/{len(rows)} frames")
+            log(f"  physics channels: {k + 1}/{len(rows)} frames")
     for note in sorted(notes):
-        log(f"  physics render: {note}")
+        log(f"  physics channels: {note}")
     write_cache(path, images, key)  # replaced whole, images first
     return path

@@ -26,6 +26,7 @@ from typing import Callable, Sequence
 import numpy as np
 
 from common.eta import Eta
+from common.wording import signed
 from model.sweep_measures import (
     THRESHOLD,
     ContactMeasure,
@@ -404,8 +405,8 @@ def run_force_sweep(
         x, y, z, theta = (float(v) for v in run.pose[f])
         w = run.wrench[f]
         label = (
-            f"{run.name} frame {f}: x {x:+.2f} y {y:+.2f} z {z:+.2f} mm theta {theta:+.1f} deg, "
-            f"Fz {w[2]:.2f} N Fx {w[0]:+.2f} Fy {w[1]:+.2f} Mz {w[5]:+.1f} Nmm"
+            f"{run.name} frame {f}: x {signed(x, 2)} y {signed(y, 2)} z {signed(z, 2)} mm θ {signed(theta, 1)}°, "
+            f"Fz {signed(w[2], 2, '')} N Fx {signed(w[0], 2)} N Fy {signed(w[1], 2)} N Mz {signed(w[5], 1)} N·mm"
         )
         for name, split_range in ranges.items():
             low, high, range_note = pose_range(split_range, run.wrench[:, COMPONENTS[name]], name, run.name)

@@ -104,8 +104,13 @@ class TrainedModel:
 
     @classmethod
     def load(cls, run_dir: str | Path, device: str = "cpu") -> "TrainedModel":
+        run_dir = C.run_folder(run_dir)  # the training folder, its checkpoint folder or a file in it
         ck = C.folder(run_dir)
-        meta = C.read_state(ck, hint=f" (train one with `train --out {run_dir}`)")
+        meta = C.read_state(
+            ck,
+            hint=" (--checkpoint takes the folder `train --out DIR` wrote, DIR/checkpoint or a file in it; "
+            f"train one with `train --out {run_dir}`)",
+        )
         cfg = C.model_config(meta, ck / C.STATE)
         mean, std, mm_per_px, frame_px = C.conditioning(meta, ck / C.STATE)
         raw = C.physics_record(meta, ck / C.STATE)

@@ -52,12 +52,13 @@ def _gaussian(x: np.ndarray) -> np.ndarray:
     return cv2.GaussianBlur(x, (WINDOW, WINDOW), SIGMA, borderType=cv2.BORDER_REFLECT)
 
 
-def ssim(a, b) -> float:
+def ssim_map(a, b) -> np.ndarray:
+    """SSIM at every pixel, averaged over channels: (H, W) float64, the windows overhanging the border
+    reflected (as scikit-image computes them before it crops that border)."""
     a, b = _pair(a, b)
     if a.ndim == 2:
         a, b = a[..., None], b[..., None]
     c1, c2 = (K1 * L) ** 2, (K2 * L) ** 2
-    pad = (WINDOW - 1) // 2
     values = []
     for ch in range(a.shape[2]):
         x, y = a[..., ch], b[..., ch]
@@ -65,9 +66,13 @@ def ssim(a, b) -> float:
         vx = _gaussian(x * x) - mx * mx
         vy = _gaussian(y * y) - my * my
         cxy = _gaussian(x * y) - mx * my
-        s = ((2 * mx * my + c1) * (2 * cxy + c2)) / ((mx * mx + my * my + c1) * (vx + vy + c2))
-        values.append(s[pad:-pad, pad:-pad].mean())  # scikit-image crops the border the window overhangs
-    return float(np.mean(values))
+        values.append(((2 * mx * my + c1) * (2 * cxy + c2)) / ((mx * mx + my * my + c1) * (vx + vy + c2)))
+    return np.mean(values, axis=0)
+
+
+def ssim(a, b) -> float:
+    pad = (WINDOW - 1) // 2
+    return float(ssim_map(a, b)[pad:-pad, pad:-pad].mean())  # scikit-image crops the border the window overhangs
 
 
 def image_metrics(real, generated) -> dict[str, float]:

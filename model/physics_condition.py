@@ -209,7 +209,7 @@ def cache_fresh(path: Path, key: dict, log: Callable[[str], None]) -> bool:
             return True
     except (OSError, json.JSONDecodeError):
         pass
-    log(f"physics render cache {path}: stale (the split, size or profile changed); rebuilding")
+    log(f"physics channels cache {path}: stale (the split, size or profile changed); rebuilding")
     return False
 
 
@@ -250,7 +250,7 @@ def physics_cache(
     poses: dict[int, np.ndarray] = {}
     wrenches: dict[int, np.ndarray] = {}
     step = max(1, len(rows) // 10)
-    log(f"physics render of {len(rows)} {part} frames at {size} px (once; cached in {path.parent})")
+    log(f"physics channels of {len(rows)} {part} frames: rendered at {size} px (once; cached in {path.parent})")
     for k, (run, frame) in enumerate(rows):
         run = int(run)
         if run not in renderers:

@@ -65,7 +65,9 @@ def response_table(summaries: list[dict], ranges: dict[str, tuple[float, float]]
     return lines
 
 
-def reference_table(summaries: list[dict], ranges: dict[str, tuple[float, float]]) -> list[str]:
+def reference_table(
+    summaries: list[dict], ranges: dict[str, tuple[float, float]], simulated: bool = False
+) -> list[str]:
     """One row per (component, reference kind) with points: the references' own response and the
     model's error against them. Real frames and renders are never pooled."""
     lines = [
@@ -73,7 +75,7 @@ def reference_table(summaries: list[dict], ranges: dict[str, tuple[float, float]
         "| area error, mm² | centroid error, mm | shading error (0–255) | image MSE |",
         "|---|---|---|---|---|---|---|---|---|",
     ]
-    words = {"real": "real frames", "render": "physics render"}
+    words = {"real": "recorded frames (simulated rig)" if simulated else "real frames", "render": "physics render"}
     for name in ranges:
         rows = [s for s in summaries if s["component"] == name]
         for tag in KINDS.values():
@@ -122,34 +124,44 @@ def real_exponent(summaries: list[dict], frames: FramesExponent | None) -> tuple
     return float("nan"), "not determined: no real frames at several forces"
 
 
-def target_exponent(summaries: list[dict], frames: FramesExponent | None) -> tuple[float, str, str]:
-    """(k the model is held to, where it comes from, why not the real frames' — "" when it is theirs):
-    the real frames' (``real_exponent``) where determined, else the calibrated physics render's at the
-    sweep's own poses, measured alike (the contact mechanics the profile was fitted with)."""
+def target_exponent(
+    summaries: list[dict], frames: FramesExponent | None, simulated: bool = False
+) -> tuple[float, str, str]:
+    """(the one reference exponent the model is held to, how it was measured, why not the real frames'
+    — "" when it is theirs). On simulated frames: the physics render at the sweep's own poses and Fz
+    points (it is the simulator that made the frames, measured exactly as the model's frames are).
+    On a real sensor's frames: the real frames' (``real_exponent``) where determined, else the calibrated
+    physics render's at the sweep's poses (the contact mechanics the profile was fitted with)."""
+    fz = [s for s in summaries if s["component"] == "Fz"]
+    render = [s["render_area_exponent"] for s in fz if math.isfinite(s.get("render_area_exponent", float("nan")))]
+    render_words = f"the physics render at the sweep's {len(render)} pose(s) and Fz points, measured as the model's"
+    if simulated and render:
+        return float(np.mean(render)), render_words + " (the simulator that made these frames)", ""
     target, source = real_exponent(summaries, frames)
     if math.isfinite(target):
         return target, source, ""
-    fz = [s for s in summaries if s["component"] == "Fz"]
-    render = [s["render_area_exponent"] for s in fz if math.isfinite(s.get("render_area_exponent", float("nan")))]
     if render:
-        return float(np.mean(render)), f"the physics render at the sweep's poses ({len(render)} pose(s))", source
+        return float(np.mean(render)), render_words, source
     return float("nan"), "", source
 
 
-def verdict(summaries: list[dict], frames: FramesExponent | None, skipped: dict[str, str]) -> str:
+def verdict(
+    summaries: list[dict], frames: FramesExponent | None, skipped: dict[str, str], simulated: bool = False
+) -> str:
     """One line: does the contact follow Fz, with what exponent, against what."""
     fz = [s for s in summaries if s["component"] == "Fz"]
     if not fz:
         return "**Verdict**: Fz was not swept" + (f" ({skipped['Fz']})" if "Fz" in skipped else "") + "."
     k = _mean([s.get("area_exponent") for s in fz])
     mono = sum(s["monotonic"] for s in fz)
-    target, source, why_not = target_exponent(summaries, frames)
+    target, source, why_not = target_exponent(summaries, frames, simulated)
     line = f"**Verdict**: the contact grows monotonically with Fz at {mono}/{len(fz)} poses, k = {_f(k)}"
     if math.isfinite(target) and math.isfinite(k):
         ratio = k / target if target else float("nan")
         within = math.isfinite(ratio) and abs(ratio - 1) <= EXPONENT_TOLERANCE
         line += (
-            f" against {_f(target)} for {source}: {'within' if within else 'outside'} ±{EXPONENT_TOLERANCE:.0%}"
+            f" against the reference exponent {_f(target)} ({source}): {'within' if within else 'outside'}"
+            f" ±{EXPONENT_TOLERANCE:.0%}"
             f" ({_f(ratio)}×)"
         )
         if why_not:
@@ -187,7 +199,7 @@ def sweep_section(ev, out: Path, suffix: str, figure) -> list[str]:
     lines = ["", f"### Force response (`{ev.part}`)", ""]
     if not ev.sweeps:
         return lines + [f"No force sweep: {ev.sweep_note}."] + [f"- {why}" for why in ev.sweep_skipped.values()]
-    lines += [verdict(ev.sweep_summary, ev.frames_exponent, ev.sweep_skipped), ""]
+    lines += [verdict(ev.sweep_summary, ev.frames_exponent, ev.sweep_skipped, ev.simulated), ""]
     lines += [
         f"Each component swept over its training range (the split's 2nd–98th percentile) at {ev.sweep_poses}, "
         f"the condition image(s) and the other components held at the pose frame's own; {ev.sweep_note}. "
@@ -204,17 +216,17 @@ def sweep_section(ev, out: Path, suffix: str, figure) -> list[str]:
     if ev.sweep_skipped or pose_notes(ev.sweep_summary):
         lines.append("")
     lines += response_table(ev.sweep_summary, ev.sweep_ranges) + [""]
-    lines += reference_table(ev.sweep_summary, ev.sweep_ranges)
+    lines += reference_table(ev.sweep_summary, ev.sweep_ranges, ev.simulated)
     fe = ev.frames_exponent
     if fe is not None:
         lines += [
             "",
-            f"Real frames: {fe.source or 'the part’s, each at its own pose'} ({fe.frames} in contact, "
+            f"{'Recorded frames (simulated rig)' if ev.simulated else 'Real frames'}: "
+            f"{fe.source or 'the part’s, each at its own pose'} ({fe.frames} in contact, "
             f"Fz {_f(fe.fz_low)}–"
             f"{_f(fe.fz_high)} N): area ∝ Fz^k with k = {_f(fe.k)} [{_f(fe.low)}, {_f(fe.high)}] (95 % bootstrap "
             f"interval over frames), ρ = {_f(fe.rho)}. Across poses the light and the gel differ as well as the "
-            "force, so this exponent is the real frames' only where the data has no frames at one pose and several "
-            "forces.",
+            "force, so this exponent is a diagnostic beside the reference the verdict names, not a second one.",
         ]
     lines += ["", "Poses:", ""]
     lines += [f"{i + 1}. {label}" for i, label in enumerate(dict.fromkeys(s.label for s in ev.sweeps))]

@@ -625,6 +625,7 @@ def test_a_protocol_started_from_the_page_ends_interrupted_on_stop(browser, runs
     browser.find_element("id", "protocol-origin").clear()
     browser.find_element("id", "protocol-origin").send_keys("0,0,0,0")
     before = set(runs_dir.glob("sphere10mm-*.h5"))
+    console_z = axis_position(browser, "z")  # the console's own rig: the protocol runs on a rig of its own
     browser.find_element("id", "run-protocol").click()
     mine = lambda d: next(
         (p for p in page(d, "window.rigConsole.progress") if p["run"].startswith("sphere10mm-") and "frame" in p), None
@@ -646,6 +647,11 @@ def test_a_protocol_started_from_the_page_ends_interrupted_on_stop(browser, runs
     assert status == "interrupted" and "STOP from 127.0.0.1" in reason, (status, reason)
     assert 3 <= n < p["frames"]
     assert not sidecar_path(out).exists()
+    # the axes shown are the protocol's rig's as it ended, z lifted to its approach height, and said so
     wait_for(browser, lambda d: axis_position(d, "z") >= 1.0 - 0.01, "z was not lifted to the approach height")
-    z = jog_and_wait(browser, "z", "plus", "1")  # the console goes on: jogging works again
-    assert z >= 2.0 - 0.01
+    assert "own simulated rig as it ended" in browser.find_element("id", "axes-source").text
+    # the console goes on: jogging works again, on the console's own rig, which the axes show again
+    select_step(browser, "1")
+    browser.find_element("id", "jog-z-plus").click()
+    wait_for(browser, lambda d: abs(axis_position(d, "z") - (console_z + 1.0)) < 0.01, "z did not jog on")
+    assert "this console's rig" in browser.find_element("id", "axes-source").text

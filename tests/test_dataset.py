@@ -306,3 +306,11 @@ def test_held_out_runs_form_their_own_part_and_unknown_runs_are_named(tmp_path):
     assert set(parts["test_run"][:, 0].tolist()) == {2} and 2 not in set(parts["train"][:, 0].tolist())
     with pytest.raises(SplitError, match=r"--test-runs .*nosuch.h5: not one of the runs given"):
         make_split(runs, "8:2", tmp_path / "t", test_runs=[tmp_path / "nosuch.h5"])
+    # a run may be named by its file name alone, or its stem, where that names one run
+    make_split(runs, "8:2", tmp_path / "n", test_runs=["r1.h5"], hold_out_runs=["r2"])
+    _, parts = load_split(tmp_path / "n")
+    assert set(parts["test"][:, 0].tolist()) == {1} and set(parts["test_run"][:, 0].tolist()) == {2}
+    (tmp_path / "other").mkdir()
+    twin = make_run(tmp_path / "other" / "r1.h5", n=20, seed=5)
+    with pytest.raises(SplitError, match=r"--test-runs r1.h5: names 2 of the runs given to split .*give its path"):
+        make_split([*runs, twin], "8:2", tmp_path / "u", test_runs=["r1.h5"])

@@ -94,7 +94,10 @@ def test_evaluate_on_an_object_split_writes_one_report_with_both_parts(runs, tmp
     assert "held out of training (part test_object): heart" in text and "trained on: sphere10mm, square" in text
     assert "## Part `test`: unseen frames of the training objects (sphere10mm, square)" in text
     assert "## Part `test_object`: objects held out of training, never seen by the model (heart)" in text
-    assert text.count("| this model (ddim, 2 steps) |") == 2
+    # each part: the whole-frame table, the near-contact table and the light-load table (issue 37)
+    assert text.count("| this model (ddim, 2 steps) |") == 6 and text.count("### Near the contact") == 2
+    assert text.count("**Light load**: the 3 frame(s) of smallest Fz") == 2
+    assert "**Verdict near the contact**" in text and "within 3 mm of the contact the real frame shows" in text
     assert text.count("### Force response") == 2 and "| Fz | " in text and "| Mz | " in text
     for png in ("samples.png", "samples-test_object.png", "force_sweep_Fz.png", "force_sweep_Fx-test_object.png"):
         assert (tmp_path / "rep" / png).stat().st_size > 1000, png
@@ -113,9 +116,9 @@ def test_evaluate_on_an_object_split_writes_one_report_with_both_parts(runs, tmp
         "baseline: mean training frame",
         "baseline: background + mean training contact at the pose",
         "baseline: nearest training frame by condition",
-        "baseline: physics render",
+        "baseline: physics render at the measured pose",
     ):
-        assert text.count(f"| {name}") == 2, name
+        assert text.count(f"| {name}") == 6, name  # whole frame, near the contact, light load; two parts
     assert text.count("**Verdict**: ") >= 4  # the metrics and the force response of each part
     row = next(line for line in text.splitlines() if line.startswith("| baseline: mean training frame |"))
     assert re.search(r"\| \d+\.\d\d \(\d+\.\d\d–\d+\.\d\d\) \|", row), row  # MSE (95 % interval)

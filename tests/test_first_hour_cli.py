@@ -58,7 +58,10 @@ def test_a_stored_origin_is_checked_kept_and_used_by_run_protocol(tmp_path, rig_
     assert origin == (1.5, -2.0, -0.125, 3.0) and "remembered by rig find-contact --set-origin" in said
     assert resolve_origin((0.0, 0.0, 0.0, 0.0), cfg_path, sim=False)[1] == "from --origin"
     result = runner.invoke(app, ["run-protocol", "sphere10mm", "--config", str(cfg_path), "--dry-run"])
-    assert "origin: x,y,z,theta = 1.5,-2,-0.125,3 (remembered by rig find-contact --set-origin" in result.output
+    assert (
+        "origin: x,y,z,theta = 1.5000,-2.0000,-0.1250,3.0000 (remembered by rig find-contact --set-origin"
+        in result.output
+    )
     data = json.loads(state.path.read_text())
     data["origin"]["xyzt"] = [1.0, float("nan"), 0.0, 0.0]
     state.path.write_text(json.dumps(data))
@@ -69,9 +72,11 @@ def test_a_stored_origin_is_checked_kept_and_used_by_run_protocol(tmp_path, rig_
 def test_run_protocol_says_which_origin_it_used():
     result = runner.invoke(app, ["run-protocol", "sphere10mm", "--sim", "--dry-run"])
     assert result.exit_code == 0, result.output
-    assert "origin: x,y,z,theta = 0,0,0,0 (the simulated rig's contact point)" in result.output
+    assert "origin: x,y,z,theta = 0.0000,0.0000,0.0000,0.0000 (the simulated rig's contact point)" in result.output
     given = runner.invoke(app, ["run-protocol", "sphere10mm", "--sim", "--dry-run", "--origin", "0.5,0,0,0"])
-    assert "origin: x,y,z,theta = 0.5,0,0,0 (from --origin)" in given.output
+    assert "origin: x,y,z,theta = 0.5000,0.0000,0.0000,0.0000 (from --origin)" in given.output
+    tiny = runner.invoke(app, ["run-protocol", "sphere10mm", "--sim", "--dry-run", "--origin", "-9.125e-06,0,0,0"])
+    assert "origin: x,y,z,theta = 0.0000,0.0000,0.0000,0.0000 (from --origin)" in tiny.output  # never e-notation
 
 
 def test_a_protocol_typo_says_did_you_mean():
@@ -87,7 +92,7 @@ def test_protocols_show_states_the_disk_a_run_takes_compressed():
     result = runner.invoke(app, ["protocols", "show", "sphere10mm"])
     assert result.exit_code == 0, result.output
     assert "disk: about 273–319 MB on disk (camera frames, HTJ2K; 1.14 GB of raw frames at 256x256)" in result.output
-    assert "with --sim: about 751–876 MB on disk" in result.output  # a simulated run file: ~753 MB measured
+    assert "with --sim: about 692–920 MB on disk" in result.output  # a simulated run file: 718 MB measured
 
 
 def test_run_protocol_prints_whole_lines_with_units_when_not_on_a_terminal(tmp_path):

@@ -272,8 +272,25 @@ def test_without_a_real_exponent_the_model_is_held_to_the_render_at_its_poses():
     assert s["render_area_exponent"] == pytest.approx(2 / 3, abs=0.1)
     falling = M.FramesExponent(-0.49, -1.05, -0.16, -0.42, 24, 1.18, 1.78, "24 real frames")
     line = verdict([s], falling, {})
-    assert "for the physics render at the sweep's poses (1 pose(s)): within ±30%" in line
+    assert "reference exponent 0.67 (the physics render at the sweep's 1 pose(s) and Fz points" in line
+    assert "within ±30%" in line
     assert "interval [-1.05, -0.16] that lies below zero" in line
+
+
+def test_on_simulated_frames_the_one_reference_is_the_simulators_render():
+    """Simulated frames (issue 37): the recorded frames at the poses (0.50 here) and across the part (0.55)
+    are diagnostics; the one reference is the render at the sweep's poses, the simulator that made the
+    frames. A model matching the simulator's 0.67 passes; on a real sensor the real frames come first."""
+    values = F.sweep_values(1.0, 8.0, 5)
+    renders = [R.Reference(disk(RADIUS_PX_PER_N3 * v ** (1 / 3)), R.RENDER, "physics render") for v in values]
+    s = F.summarise(sweep(hertz, "Fz", values, references=renders, blur_px=0))
+    s["real_area_exponent"] = 0.50
+    across = M.FramesExponent(0.55, 0.50, 0.60, 0.9, 40, 0.1, 3.0, "40 frames")
+    simulated = verdict([s], across, {}, simulated=True)
+    assert "reference exponent 0.67" in simulated and "the simulator that made these frames" in simulated
+    assert "within ±30%" in simulated and simulated.count("reference exponent") == 1
+    real = verdict([s], across, {}, simulated=False)
+    assert "reference exponent 0.50 (the real frames at the sweep's poses" in real and "outside ±30%" in real
 
 
 def test_a_pose_is_swept_only_over_what_its_own_run_recorded_and_says_so(monkeypatch):

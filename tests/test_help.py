@@ -6,10 +6,17 @@ import typer
 
 from cli.dataset_app import app as dataset_app
 from cli.model_app import app as train_app
-from cli.model_app import evaluate_app, generate_app
+from cli.model_app import compare_app, evaluate_app, generate_app
 from cli.rig_app import app as rig_app
 
-APPS = {"rig": rig_app, "dataset": dataset_app, "train": train_app, "generate": generate_app, "evaluate": evaluate_app}
+APPS = {
+    "rig": rig_app,
+    "dataset": dataset_app,
+    "train": train_app,
+    "generate": generate_app,
+    "evaluate": evaluate_app,
+    "compare": compare_app,
+}
 
 
 def _commands(name, group):
@@ -35,3 +42,25 @@ def test_every_option_has_help_and_a_default_or_says_it_is_required(cmd_name, op
     if option.required or option.is_flag or option.default is not None:
         return  # required, a switch, or a default the help screen shows
     assert "default" in text.lower(), f"{cmd_name} --{option.name}: no default is shown and the help does not state one"
+
+
+def test_no_help_text_loses_a_bracketed_word_to_markup():
+    """`train --help` read "A model TOML: preset,  and  tables": rich took [model] and [train] for markup
+    (issue 37). Every bracketed word of every help text is shown as written."""
+    import re
+
+    from rich.markup import render
+
+    lost = []
+    texts = [(cmd_name, option.name, option.help) for cmd_name, option in _all_options()]
+    for name, app in APPS.items():
+        texts += [
+            (cmd_name, "(its description)", cmd.help) for cmd_name, cmd in _commands(name, typer.main.get_command(app))
+        ]
+    for cmd_name, option_name, help_text in texts:
+        text = help_text or ""
+        shown = render(text).plain
+        for word in re.findall(r"\\?\[[A-Za-z_][\w. -]*\]", text):
+            if word.lstrip("\\") not in shown:
+                lost.append(f"{cmd_name} --{option_name}: {word}")
+    assert not lost, lost

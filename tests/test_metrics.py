@@ -146,3 +146,63 @@ def test_overlapping_intervals_read_tied_and_the_oracle_is_apart():
     assert "physics render is an oracle on simulated frames" in text and "than physics render" not in text
     real = metrics_verdict(_evaluation(model, [nearest], physics=render, simulated=False))
     assert "MSE **worse** than physics render" in real  # on real frames it is a baseline like the others
+
+
+# -- near the contact, and light loads (issue 37) -------------------------------------------------
+def _disk_frame(radius_px: float, centre=(32, 32), size=64, gain=80.0, base=None):
+    yy, xx = np.mgrid[:size, :size]
+    frame = np.full((size, size, 3), 120.0) if base is None else base.astype(np.float64).copy()
+    inside = (yy - centre[1]) ** 2 + (xx - centre[0]) ** 2 <= radius_px**2
+    frame[inside] += gain
+    return np.clip(frame, 0, 255).astype(np.uint8)
+
+
+def test_near_contact_metrics_see_the_contact_that_the_whole_frame_dilutes():
+    from model.contact_scores import find_contacts, near_row
+    from model.metrics import image_metrics
+
+    rng = np.random.default_rng(0)
+    background = np.full((64, 64, 3), 120, np.uint8)
+    real = [_disk_frame(6, (20 + 3 * i, 30)) for i in range(4)] + [background.copy()]
+    wrong = [_disk_frame(12, (20 + 3 * i, 30)) for i in range(4)] + [background.copy()]  # contact twice too wide
+    noisy = [np.clip(r + rng.normal(0, 3, r.shape), 0, 255).astype(np.uint8) for r in real]
+    contacts = find_contacts(real, [background] * 5, [0.1] * 5, [1.0] * 5, blur_px=1.0, radius_mm=1.0)
+    assert contacts.seen == 4 and contacts.regions[4] is None  # the untouched frame has no near value
+    region = contacts.regions[0]
+    assert region is not None and region[30, 20] and not region[5, 60]  # around the contact, not the corner
+    assert 0.8 * np.pi * 16**2 < region.sum() < 1.2 * np.pi * 16**2  # 6 px + 1 mm / 0.1 mm per px
+    whole = np.mean([image_metrics(r, w)["mse"] for r, w in zip(real, wrong)])
+    near = near_row("wrong", real, wrong, contacts)
+    assert near is not None and near.images == 4
+    assert near.mse > 2.5 * whole  # the background no longer dilutes the error
+    good = near_row("noisy", real, noisy, contacts)
+    assert good is not None and good.mse < near.mse and good.ci["mse"][1] < near.ci["mse"][0]
+    assert 0 < good.ssim <= 1 and near.psnr < good.psnr
+
+
+def test_the_light_load_row_reads_a_contact_twice_too_large_as_about_two():
+    from model.contact_scores import find_contacts, light_frames, light_load
+
+    background = np.full((64, 64, 3), 120, np.uint8)
+    fz = [0.04, 0.05, 0.06, 0.5, 1.0, 1.5, 2.0, 2.5, 3.0, 3.5, 4.0, 4.5, 5.0, 6.0, 7.0, -0.01]
+    radius = [3 + 2 * f for f in fz]
+    real = [_disk_frame(r, (30, 30)) for r in radius]
+    contacts = find_contacts(real, [background] * len(fz), [0.1] * len(fz), fz, blur_px=0.0)
+    assert light_frames(contacts) == [0, 1, 2]  # the lightest pressed frames (20 % of 15 is 3), not Fz < 0
+    same = light_load("same", real, contacts)
+    assert same is not None and same["ratio"] == pytest.approx(1.0, abs=0.02)
+    grown = [_disk_frame(r * np.sqrt(2), (30, 30)) for r in radius]  # area × 2
+    twice = light_load("twice", grown, contacts)
+    assert twice is not None and twice["ratio"] == pytest.approx(2.0, abs=0.25)
+    assert twice["ratio_ci"][0] > 1.5 and twice["fz_low_N"] == 0.04 and twice["fz_high_N"] == 0.06
+
+
+def test_a_test_part_of_named_runs_says_which_runs_and_never_trained_on():
+    from model.eval_results import Evaluation
+    from model.evaluation_report import part_text
+
+    ev = Evaluation([], None, "", False, part="test", test_runs=["/data/runs/central_band.h5"])
+    assert part_text(ev) == (
+        "the runs named for the test part (dataset split --test-runs: central_band.h5), never trained on"
+    )
+    assert part_text(Evaluation([], None, "", False, part="test")) == "unseen frames of the training objects"

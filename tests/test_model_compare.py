@@ -151,6 +151,49 @@ def test_the_comparison_holds_settings_to_the_same_exponent_as_each_runs_report(
         "candidates": {"plane": {"k": {"mean": 0.48, "std": 0.01, "low": 0.47, "high": 0.49, "n": 3}}},
     }
     line = force_verdict(entry)
-    assert "held to +0.51" in line and "the real frames at the sweep's poses" in line and "(within)" in line
+    assert (
+        "held to the reference exponent +0.51" in line
+        and "the real frames at the sweep's poses" in line
+        and "(within)" in line
+    )
     entry["real_exponent_at_poses"] = None  # none at the poses: the frames across poses (interval above zero)
-    assert "held to +0.62" in force_verdict(entry)
+    assert "held to the reference exponent +0.62" in force_verdict(entry)
+    # a summary made now carries the one reference each run's report names, and is held to that
+    entry["reference_exponent"], entry["reference_source"] = 0.71, "the physics render at the sweep's 8 pose(s)"
+    line = force_verdict(entry)
+    assert "held to the reference exponent +0.71" in line and "8 pose(s)" in line and "(outside)" in line
+
+
+def test_compare_steps_makes_each_step_count_a_setting_of_its_own(monkeypatch, tmp_path):
+    """`compare --steps 400,1200` (issue 37): each candidate at each step count, named and foldered apart,
+    each trained for its own steps."""
+    import typer
+
+    import model.build
+    from cli.model_app import _step_counts
+    from model.compare import train_one
+
+    assert _step_counts("400,1200") == [400, 1200] and _step_counts(None) == []
+    for bad in ("400,x", "0", "400,400", ""):
+        with pytest.raises(typer.BadParameter, match="--steps"):
+            _step_counts(bad)
+    text = "physics,target=physics_residual,residual_gain=8"
+    short, long = (Candidate.parse(text).with_steps(n) for n in (400, 1200))
+    assert long.name == f"{text} @ 1200 steps" and short.folder != long.folder
+    seen = []
+
+    class Trainer:
+        def train(self):
+            pass
+
+        def save(self):
+            pass
+
+    def fake_build(cfg, train_cfg, *args, **kwargs):
+        seen.append((cfg.residual_gain, train_cfg.steps, train_cfg.checkpoint_every))
+        return Trainer()
+
+    monkeypatch.setattr(model.build, "build", fake_build)
+    for cand in (short, long):
+        train_one(cand, 0, ModelConfig(), {"steps": 400, "batch_size": 2}, tmp_path, tmp_path / cand.folder)
+    assert seen == [(8.0, 400, 400), (8.0, 1200, 1200)]

@@ -214,6 +214,10 @@ def test_generate_from_a_trained_run(tmp_path):
         model.generate(obj, [0, 0, float("nan"), 0, 0, 0])
     with pytest.raises(CheckpointError, match="no checkpoint"):
         TrainedModel.load(tmp_path / "elsewhere")
+    # the checkpoint folder that `train` prints, or a file in it, names the same run (issue 37)
+    for given in (run / "checkpoint", run / "checkpoint" / "state.json"):
+        again = TrainedModel.load(given)
+        assert np.array_equal(again.generate(obj, [0, 0, 2, 0, 0, 0], (0.2, 0.0, 5.0), steps=4, seed=1), a)
 
 
 def test_evaluate_writes_the_report_with_the_physics_render_row(tmp_path):
@@ -235,7 +239,10 @@ def test_evaluate_writes_the_report_with_the_physics_render_row(tmp_path):
     mine, paper = text.split("## The paper's numbers")
     assert "| this model (ddim, 3 steps) | " in mine and "| paper, RGB light | 21.0 |" in paper
     assert "paper, RGB light" not in mine  # the paper's rows in a table of their own (256 px, its data)
-    assert "| baseline: physics render (the simulator's mechanics + calibrated lighting at the measured pose) |" in mine
+    assert (
+        "| baseline: physics render at the measured pose (the simulator's mechanics + calibrated lighting, on the "
+        "run's no-contact frame) |" in mine
+    )
     assert "| baseline: mean training frame |" in mine and "| baseline: nearest training frame by condition |" in mine
     assert str(tmp_path) not in text
     for png in ("error_vs_time.png", "samples.png"):

@@ -157,7 +157,7 @@ def test_the_cache_is_the_render_and_is_rebuilt_when_stale(tmp_path):
     split = make_split_dir(tmp_path)
     lines: list[str] = []
     path = physics_cache(split, "train", 8, log=lines.append)
-    assert any("physics render of 19 train frames" in line for line in lines)
+    assert any("physics channels of 19 train frames" in line for line in lines)
     data = TactileDataset(split, "train", size=8, physics=path)
     render = PhysicsRender(str(data.runs[0]), background="simulator")
     with h5py.File(data.runs[0], "r") as f:

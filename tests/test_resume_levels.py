@@ -75,7 +75,7 @@ def test_an_interrupted_level_is_pressed_again_from_its_start(name, stops, tmp_p
         for number, first, count in expected_retakes:
             g = superseded[f"retake-{number}"]
             assert g.attrs["first_capture_index"] == first and g.attrs["frames"] == count == g[S.FRAMES].shape[0]
-            assert "pressed level" in g.attrs["why"] and "interrupted (Ctrl-C)" in g.attrs["why"]
+            assert "pressed level" in g.attrs["why"] and "the run stopped (Ctrl-C" in g.attrs["why"]
             # the frames that replace them say so; a later retake of the same captures wins
             later = [n for n, lo, c in expected_retakes if n > number and lo <= first < lo + c]
             if not later:

@@ -180,10 +180,12 @@ def run_in_console(
     stop: StopRequest,
     on_progress: Callable[[Any, Any], object],
     on_run_rig: Callable[[Any], object] = lambda rig: None,
+    on_out: Callable[[Path], object] = lambda path: None,
 ):
     """Run ``protocol`` into a new file in ``folder``; returns (path, RunResult). ``simulated``:
     the console's live simulated rig (--sim), else None (the run uses ``rig``). ``on_progress(p,
-    run_rig)`` per frame; ``on_run_rig(rig)`` when a run rig of its own opens, ``(None)`` at its end."""
+    run_rig)`` per frame; ``on_run_rig(rig)`` when a run rig of its own opens, ``(None)`` at its end;
+    ``on_out(path)`` once the run file's name is chosen."""
     from acquisition.executor import Acquisition
     from acquisition.schema import RIG_CONFIG_MARK
     from cli.console.run_progress import ProgressWriter
@@ -191,6 +193,7 @@ def run_in_console(
 
     plan = Plan.of(protocol)
     out = new_run_path(folder, protocol)
+    on_out(out)
 
     def run(run_rig, header, **options):
         original = run_rig.clock

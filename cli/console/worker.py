@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 
 from common.errors import ToolError
+from common.wording import status_text
 from rig.errors import DeviceBusy, DeviceTimeout, RigError
 
 log = logging.getLogger("rig.console")
@@ -130,6 +131,8 @@ class RigWorker:
         self.runs_folder = runs_folder  # where a protocol started here writes its run file
         self._run_stop: Any = None  # the StopRequest of the protocol running, if any
         self._run_rig: Any = None  # a protocol's own rig while it runs (--sim), shown in its place
+        self._run_info: dict | None = None  # the protocol running: name, run file, newest frame, phase
+        self._ended: dict | None = None  # a --sim protocol's own rig as it ended, shown until the next command
         self.commands_done = 0  # commands carried out (or refused by the rig): benchmarks wait on it
         self.connect(on_state=on_state, on_event=on_event, on_frame=on_frame)
         self._commands: queue.Queue[Command | None] = queue.Queue()
@@ -244,6 +247,8 @@ class RigWorker:
             self._do(command)
 
     def _do(self, command: Command) -> None:
+        if command.kind != "stop":
+            self._ended = None  # a new command: the console's own rig again
         try:
             if command.kind == "jog":
                 self._jog(command)
@@ -366,8 +371,9 @@ class RigWorker:
         self._on_event(
             "info", f"{command.who or 'console'}: protocol {protocol.name}{settings} from origin {origin}{how}"
         )
-        self._publish_state(force=True)
+        self._run_info = {"name": protocol.name, "run": "", "frame": -1, "phase": "", "level": 0}
         self._run_stop = stop
+        self._publish_state(force=True)
         try:
             out, result = run_in_console(
                 self.rig,
@@ -378,19 +384,28 @@ class RigWorker:
                 stop,
                 self._protocol_progress,
                 on_run_rig=self._show_run_rig,
+                on_out=lambda path: self._run_info.update(run=path.name) if self._run_info else None,
             )
         finally:
             self._run_stop = None
+            self._run_info = None
+        if self._ended is not None:
+            self._ended.update(protocol=protocol.name, status=result.status)
         level = {"complete": "info", "interrupted": "warn"}.get(result.status, "error")
         self._on_event(
             level,
-            f"protocol {protocol.name}: {result.status}, {result.frames} frames in {out.name}"
-            + (f" ({result.reason})" if result.reason else ""),
+            f"protocol {protocol.name}: {status_text(result.status, result.reason)}, {result.frames} frames in "
+            f"{out.name}",
         )
 
     def _show_run_rig(self, run_rig) -> None:
         """A protocol's own rig (--sim) is shown in the live rig's place while it runs: its axes, and
-        its wrench on its own (simulated) time, so the trace starts afresh and again at its end."""
+        its wrench on its own (simulated) time, so the trace starts afresh and again at its end. At
+        its end, its axes as they ended are kept to show (``_ended``) until the next command: the
+        event line's lift is that rig's, not the console's."""
+        if run_rig is None and self._run_rig is not None:
+            self._publish_state(force=True)  # the run rig's axes as it ended
+            self._ended = {"axes": {k: dict(v) for k, v in self._axes.items()}, "protocol": "", "status": ""}
         self._run_rig = run_rig
         self._wrench.clear()
         self._new_wrench = []
@@ -402,6 +417,8 @@ class RigWorker:
         """Each frame of a protocol running here: its wrench into the trace, the axes to the page.
         Never raises: the page's view must not end a run (the executor's own checks do that)."""
         try:
+            if self._run_info is not None:
+                self._run_info.update(frame=p.frame - 1, phase=p.phase, level=p.level)
             row = [run_rig.clock.now(), *(float(v) for v in p.wrench)]
             self._wrench.append(row)
             self._new_wrench.append(row)
@@ -472,11 +489,21 @@ class RigWorker:
                 "travel": list(cfg.travel),
             }
         limits = rig.guard.limits.tolist() if rig.guard is not None else None
+        axes, source = self._axes, "the protocol's simulated rig" if self._run_rig is not None else "this console's rig"
+        if self._ended is not None and self._run_rig is None:
+            axes = self._ended["axes"]
+            source = (
+                f"protocol {self._ended['protocol']}'s own simulated rig as it ended ({self._ended['status']}); "
+                "this console's rig did not move: a command shows it again"
+            )
         self._on_state(
             {
                 "type": "state",
                 "t_s": now,
-                "axes": self._axes,
+                "axes": axes,
+                "axes_source": source,
+                "tare": _tare(rig),
+                "protocol": dict(self._run_info) if self._run_info is not None else None,
                 "wrench": self._new_wrench,
                 "limits": limits,
                 "activity": self.activity,
@@ -489,3 +516,16 @@ class RigWorker:
         )
         self._new_wrench = []
         self._reset_trace = False
+
+
+def _tare(rig) -> dict:
+    """Whether the wrench shown is tared: the gauge's bias (zero until `zero gauge` or a protocol tares it)."""
+    bias = getattr(rig.gauge, "bias", None) if rig.gauge is not None else None
+    if bias is None:
+        return {"tared": False, "text": "no gauge" if rig.gauge is None else "tare unknown"}
+    tared = bool(np.any(np.asarray(bias) != 0))
+    return {
+        "tared": tared,
+        "text": "tared" if tared else "untared: raw gauge reading (zero gauge to tare)",
+        "bias": [float(v) for v in bias],
+    }

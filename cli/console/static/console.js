@@ -22,6 +22,23 @@ function fixed(v, digits) {
   return /^-0\.?0*$/.test(r) ? r.slice(1) : r;
 }
 
+// A run's status with its reason, never the status twice ("interrupted (interrupted (SIGINT)…"), as
+// common/wording.py's status_text says it on the command line.
+function statusText(status, reason) {
+  reason = (reason || "").trim();
+  if (!reason) return status;
+  if (reason.toLowerCase().startsWith(status.toLowerCase())) {
+    let rest = reason.slice(status.length).trim();
+    if (rest.startsWith("(") && rest.includes(")")) {
+      const close = rest.indexOf(")");
+      rest = rest.slice(1, close) + rest.slice(close + 1);
+    }
+    rest = rest.replace(/^[:;, ]+/, "").trim();
+    return rest ? `${status} (${rest})` : status;
+  }
+  return `${status} (${reason})`;
+}
+
 // The newest value of series si (what the legend shows while the cursor is off the chart).
 function newest(u, si) {
   const data = u.data[si] || [];
@@ -31,8 +48,24 @@ function newest(u, si) {
 
 // A chart whose legend names each series with its unit and shows its value: at the cursor, else at
 // frame at() (the run browser's slider) or the newest one; every axis has ticks, labelled with its unit.
+// The least span of a chart's y axis, per unit: a gauge's noise (about 1 N·mm on Mz at rest) drawn over a
+// span of a few N·mm zigzagged the whole height and read as a solid bar; over these spans it reads as a line.
+const MIN_SPAN = { "N": 1, "N·mm": 20 };
+
+function yRange(minSpan) {
+  return (u, min, max) => {
+    if (min == null || max == null || !isFinite(min) || !isFinite(max)) return [-minSpan / 2, minSpan / 2];
+    const span = Math.max(max - min, minSpan), mid = (max + min) / 2, pad = 0.05 * span;
+    return [mid - span / 2 - pad, mid + span / 2 + pad];
+  };
+}
+
+// A chart as wide as its box, now and whenever the window is resized (a chart laid out wider than an
+// 800 px window was cut off at its right, x stopping at 52 of 86 s).
+function chartWidth(target) { return Math.max(280, Math.floor(target.clientWidth || 480)); }
+
 function chart(target, labels, units, colors, hooks, xRange, xLabel, at) {
-  const width = Math.max(320, target.clientWidth || 480);
+  const width = chartWidth(target);
   const unitOf = (i) => (Array.isArray(units) ? units[i] : units);
   const series = [{
     label: xLabel || "t (s)",
@@ -53,15 +86,28 @@ function chart(target, labels, units, colors, hooks, xRange, xLabel, at) {
   const u = new uPlot(
     {
       width, height: 210, series, hooks: hooks || {},
-      scales: { x: xRange ? { time: false, range: () => xRange } : { time: false } },
+      scales: {
+        x: xRange ? { time: false, range: () => xRange } : { time: false },
+        y: MIN_SPAN[yLabel] ? { range: yRange(MIN_SPAN[yLabel]) } : {},
+      },
+      padding: [hooks && hooks.drawClear ? 18 : 8, 8, 0, 0],  // the phase names' strip above the plot
       axes: [{ label: xLabel || "s", space: 40 }, { label: yLabel, size: 60, space: 20, values: ticks }],
       legend: { live: true },
     },
     [[]].concat(labels.map(() => [])),
     target,
   );
+  charts.push({ u, target });
   return u;
 }
+
+const charts = [];
+window.addEventListener("resize", () => {
+  for (const c of charts) {
+    const w = chartWidth(c.target);
+    if (c.target.isConnected && w !== c.u.width) c.u.setSize({ width: w, height: c.u.height });
+  }
+});
 
 // New data, and the legend's values with it while the cursor is off the chart.
 function setChartData(u, data) {
@@ -99,12 +145,14 @@ function setPill(el, text, cls) { el.textContent = text; el.className = "pill " 
 // "live" only when the link is up and the rig is open; "no rig" when it failed or is held elsewhere.
 function showLink() {
   const rig = state.rig ? state.rig.state : "opening";
-  if (rig === "open" && live.linked) setPill($("link-status"), "live", "ok");
+  if (state.protocol && live.linked) setPill($("link-status"), `running protocol ${state.protocol.name}`, "run");
+  else if (rig === "open" && live.linked) setPill($("link-status"), "live", "ok");
   else if (rig === "opening") setPill($("link-status"), live.linked ? "connected; opening the rig…" : "connecting…", "");
   else if (live.linked || rig !== "open") setPill($("link-status"), "no rig", "bad");
 }
 
 async function drawFrame(buffer) {
+  if (state.protocol) return;  // the run's own frames are shown meanwhile (showRunFrame)
   const n = new DataView(buffer).getUint32(0, true);
   const header = JSON.parse(new TextDecoder().decode(new Uint8Array(buffer, 4, n)));
   const bitmap = await createImageBitmap(new Blob([new Uint8Array(buffer, 4 + n)], { type: "image/jpeg" }));
@@ -209,8 +257,42 @@ function setControl(m) {
   else if (mine) setPill($("control-status"), "you have control", "ok");
   else if (m.holder) setPill($("control-status"), `controlled by ${m.holder} since ${m.since}`, "bad");
   else setPill($("control-status"), "nobody has control", "");
-  document.querySelectorAll(".needs-control").forEach((b) => { b.disabled = !mine; });
-  if (mine) $("control-msg").textContent = "";
+  applyLock();
+  if (mine && !state.protocol) $("control-msg").textContent = "";
+}
+
+// Controls the server would refuse are disabled, each with the reason on it and in a line under them.
+function applyLock() {
+  const mine = !!(state.control && state.control.you);
+  const running = state.protocol;
+  const why = running ? `controls locked: protocol ${running.name} is running (STOP ends it)` :
+    mine ? "" : "take control first";
+  document.querySelectorAll(".needs-control").forEach((b) => { b.disabled = !mine || !!running; b.title = why; });
+  const lock = $("lock-msg");
+  lock.hidden = !running;
+  lock.textContent = running ? why : "";
+}
+
+// The protocol's own newest frame in the live view's place (fetched from its run file, as the run browser).
+async function showRunFrame(p) {
+  if (!p.run || p.frame < 0 || live.runFrameBusy || live.runFrameShown === `${p.run}#${p.frame}`) return;
+  live.runFrameBusy = true;
+  try {
+    const response = await fetch(`api/run/image?kind=frame&i=${p.frame}&name=${encodeURIComponent(p.run)}`);
+    if (!response.ok || !state.protocol) return;
+    const bitmap = await createImageBitmap(await response.blob());
+    const canvas = $("live-frame");
+    if (canvas.width !== bitmap.width || canvas.height !== bitmap.height) {
+      canvas.width = bitmap.width; canvas.height = bitmap.height;
+    }
+    canvas.getContext("2d").drawImage(bitmap, 0, 0);
+    canvas.dataset.index = String(p.frame);
+    canvas.dataset.run = p.run;
+    live.runFrameShown = `${p.run}#${p.frame}`;
+    state.runFrame = { run: p.run, index: p.frame };
+  } finally {
+    live.runFrameBusy = false;
+  }
 }
 
 // Who holds the rig: this console (its pid), or, when a device is held elsewhere, that process.
@@ -246,10 +328,20 @@ function onState(m) {
   live.limits = m.limits;
   if (m.reset_trace) live.wrench = [];  // a protocol's own (simulated) clock began or ended
   state.simulatedTime = !!m.simulated_time;
-  if (m.protocol_running) {  // the run owns the camera: no live frames until it ends
-    $("frame-info").textContent = "paused while a protocol runs (its newest frame: the progress panel above)";
+  const was = state.protocol;
+  state.protocol = m.protocol || null;
+  state.tare = m.tare || null;
+  state.axesSource = m.axes_source || "";
+  if (state.protocol) {  // the run owns the camera: its own newest frame is shown, not the idle stream
+    const p = state.protocol;
+    $("frame-info").textContent = p.frame >= 0
+      ? `#${p.frame} of ${p.run} · the protocol's newest frame (${p.phase}, level ${p.level}) · live view paused`
+      : `protocol ${p.name} starting · live view paused`;
     live.draws = [];
+    showRunFrame(p);
   }
+  if (!!was !== !!state.protocol) { showLink(); applyLock(); }
+  $("axes-source").textContent = state.axesSource ? `(${state.axesSource})` : "";
   for (const row of m.wrench) live.wrench.push(row);
   const last = live.wrench.length ? live.wrench[live.wrench.length - 1] : null;
   if (last) {
@@ -257,6 +349,11 @@ function onState(m) {
     state.wrench = last.slice(1);
     $("wrench-now").textContent = COMPONENTS.map((c, i) => `${c} ${fixed(last[i + 1], 2)} ${UNITS[i]}`).join("  ") +
       (m.simulated_time ? " (a protocol's simulated time)" : "");
+  }
+  if (m.tare) {
+    const t = $("tare-state");
+    t.textContent = m.tare.tared ? "tared" : m.tare.text;
+    t.className = "pill " + (m.tare.tared ? "ok" : "bad");
   }
   if (m.limits) {
     $("limits").textContent = "limits: " + COMPONENTS.map((c, i) => `|${c}| ≤ ${m.limits[i]}`).join(", ") +
@@ -406,25 +503,48 @@ async function listRuns(select) {
   if (keep && runs.some((r) => r.name === keep)) { sel.value = keep; await openRun(keep); }
 }
 
-function phaseBands(u) {
-  const run = browser.run;
-  if (!run || !run.t_s.length) return;
-  const ctx = u.ctx, top = u.bbox.top, h = u.bbox.height;
+// Each phase a shaded band over the plot (drawn before the traces); its name in the strip above the plot
+// (drawn after them, so no trace hides it), centred over its own band and only where it fits there.
+function phaseSpans(u) {
+  const run = browser.run, spans = [];
+  if (!run || !run.t_s.length) return spans;
   let start = 0;
   for (let i = 1; i <= run.t_s.length; i++) {
     if (i === run.t_s.length || run.phase_index[i] !== run.phase_index[start]) {
       // a phase's band runs from its first frame to the next phase's first frame
       const end = i < run.t_s.length ? run.t_s[i] : run.t_s[i - 1];
-      const x0 = u.valToPos(run.t_s[start], "x", true), x1 = u.valToPos(end, "x", true);
-      const p = run.phase_index[start];
-      ctx.fillStyle = PHASE_COLORS[p % PHASE_COLORS.length];
-      ctx.fillRect(x0, top, Math.max(1, x1 - x0), h);
-      ctx.fillStyle = "#555";
-      ctx.font = `${10 * devicePixelRatio}px sans-serif`;
-      if (x1 - x0 > 30) ctx.fillText(run.phases[p] || "?", x0 + 3, top + 12 * devicePixelRatio);
+      spans.push({ x0: u.valToPos(run.t_s[start], "x", true), x1: u.valToPos(end, "x", true), p: run.phase_index[start] });
       start = i;
     }
   }
+  return spans;
+}
+
+function phaseBands(u) {
+  const ctx = u.ctx, top = u.bbox.top, h = u.bbox.height;
+  for (const b of phaseSpans(u)) {
+    ctx.fillStyle = PHASE_COLORS[b.p % PHASE_COLORS.length];
+    ctx.fillRect(b.x0, top, Math.max(1, b.x1 - b.x0), h);
+  }
+}
+
+function phaseLabels(u) {
+  const run = browser.run, ctx = u.ctx, dpr = devicePixelRatio;
+  if (!run) return;
+  ctx.save();
+  ctx.font = `${10 * dpr}px sans-serif`;
+  ctx.fillStyle = "#333";
+  ctx.textBaseline = "bottom";
+  const placed = [];
+  for (const b of phaseSpans(u)) {
+    const name = run.phases[b.p] || "?", w = ctx.measureText(name).width;
+    if (w + 4 * dpr > b.x1 - b.x0) continue;  // the band is too narrow for its name: none rather than a wrong one
+    const x = (b.x0 + b.x1 - w) / 2;
+    ctx.fillText(name, x, u.bbox.top - 3 * dpr);
+    placed.push({ name, x0: x / dpr, x1: (x + w) / dpr, band: [b.x0 / dpr, b.x1 / dpr] });
+  }
+  ctx.restore();
+  u.phaseLabels = placed;  // what tests read: each label's extent (CSS px) and its own band's
 }
 
 function atSlider() {
@@ -452,14 +572,14 @@ async function openRun(name) {
   $("run-view").hidden = false;
   $("run-flow-label").hidden = !run.sensor.endsWith("_markers");
   if (!run.sensor.endsWith("_markers")) $("run-flow").checked = false;
-  $("run-info").textContent = `${run.protocol} · ${run.object} · ${run.sensor} · ${run.frames} / ${run.frames_planned} frames written · ${run.status}` +
-    (run.reason ? ` (${run.reason})` : "") + ` · phases: ${run.phases.join(", ")}`;
+  $("run-info").textContent = `${run.protocol} · ${run.object} · ${run.sensor} · ${run.frames} / ${run.frames_planned} frames written · ` +
+    statusText(run.status, run.reason) + ` · phases: ${run.phases.join(", ")}`;
   const slider = $("run-slider");
   const wasAtEnd = Number(slider.value) >= Number(slider.max);
   slider.max = String(Math.max(0, run.frames - 1));
   if (fresh) {
     browser.charts.forEach((c) => c.destroy());
-    const hooks = { drawClear: [phaseBands], draw: [frameMarker] };
+    const hooks = { drawClear: [phaseBands], draw: [frameMarker, phaseLabels] };
     state.runCharts = browser.charts = [
       chart($("run-forces"), COMPONENTS.slice(0, 3), "N", COLORS.slice(0, 3), hooks, null, "t (s) from the first frame", atSlider),
       chart($("run-moments"), COMPONENTS.slice(3), "N·mm", COLORS.slice(3), hooks, null, "t (s) from the first frame", atSlider),
@@ -561,7 +681,7 @@ function progressCard(p, i) {
   const rows = [];
   if (p.finished) {
     title.textContent = `${p.run}: ended`;
-    rows.push(["status", `${p.file_status}${p.file_reason ? " — " + p.file_reason : ""}`]);
+    rows.push(["status", statusText(p.file_status, p.file_reason)]);
     rows.push(["frames", `${p.committed} / ${p.frames_planned}`]);
   } else {
     title.textContent = `${p.protocol} → ${p.run}` + (p.stale ? ` — no update for ${fmtDuration(p.age_s)}: the writer stopped?` : "");
