@@ -155,7 +155,7 @@ def test_sweep_range_of_a_split_written_before_the_percentiles(runs, tmp_path):
     """A split.json without wrench_percentiles: the range comes from the training part's frames."""
     from dataset.split import PERCENTILES, make_split
     from dataset.torch_dataset import TactileDataset
-    from model.evaluate import _train_percentiles
+    from model.evaluate_sweep import _train_percentiles
 
     make_split(runs, "8:2", tmp_path / "s", hold_out=["heart"])
     manifest = json.loads((tmp_path / "s" / "split.json").read_text())
