@@ -12,24 +12,15 @@ import math
 from dataclasses import replace
 
 from model.eval_results import PHYSICS, Evaluation, Row
-from model.verdicts import metrics_verdict
-
-
-def _ci_cell(value: float, ci, fmt: str) -> str:
-    if value is None or not math.isfinite(value):
-        return "—"
-    text = fmt.format(value)
-    if ci and all(isinstance(v, float) and math.isfinite(v) for v in ci):
-        text += f" ({fmt.format(ci[0])}–{fmt.format(ci[1])})"
-    return text
+from model.verdicts import ci_cell, metrics_verdict
 
 
 def _near_line(name: str, r: Row) -> str:
     cells = [
-        _ci_cell(r.mse, r.ci.get("mse"), "{:.2f}"),
-        _ci_cell(r.mae, r.ci.get("mae"), "{:.2f}"),
-        _ci_cell(r.ssim, r.ci.get("ssim"), "{:.3f}"),
-        _ci_cell(r.psnr, r.ci.get("psnr"), "{:.2f}"),
+        ci_cell(r.mse, r.ci.get("mse"), "{:.2f}"),
+        ci_cell(r.mae, r.ci.get("mae"), "{:.2f}"),
+        ci_cell(r.ssim, r.ci.get("ssim"), "{:.3f}"),
+        ci_cell(r.psnr, r.ci.get("psnr"), "{:.2f}"),
     ]
     return f"| {name} | " + " | ".join(cells) + f" | {r.images} |"
 
@@ -91,7 +82,7 @@ def light_section(ev: Evaluation) -> list[str]:
         label = f"this model ({name})" if row.get("model") else f"baseline: {name}"
         if name == PHYSICS and not row.get("model"):
             label = "baseline: physics render at the measured pose"
-        ratio = _ci_cell(row["ratio"], row["ratio_ci"], "{:.2f}")
+        ratio = ci_cell(row["ratio"], row["ratio_ci"], "{:.2f}")
         if not math.isfinite(row["ratio"]):
             ratio = "— (the real frames show no contact at these loads)"
         lines.append(f"| {label} | {row['area_mm2']:.2f} | {row['real_area_mm2']:.2f} | {ratio} |")

@@ -22,7 +22,7 @@ from pathlib import Path
 
 from model.contact_report import near_section
 from model.eval_results import PAPER_ROWS, Evaluation, Row
-from model.verdicts import compare_metric, metrics_verdict
+from model.verdicts import ci_cell, compare_metric, metrics_verdict
 
 __all__ = ["compare_metric", "metrics_verdict", "write_report", "part_text", "strip_paths", "json_safe"]
 
@@ -45,28 +45,18 @@ def part_text(ev: Evaluation) -> str:
     return PART_TEXT.get(ev.part, "a part of the split")
 
 
-def _cell(value: float | None, ci: tuple[float, float] | None, fmt: str) -> str:
-    """A metric's mean with its 95 % bootstrap interval over frames: ``4.17 (3.20–5.31)``."""
-    if value is None or not math.isfinite(value):
-        return "—"
-    text = fmt.format(value)
-    if ci and all(isinstance(v, float) and math.isfinite(v) for v in ci):
-        text += f" ({fmt.format(ci[0])}–{fmt.format(ci[1])})"
-    return text
-
-
 def _fmt_row(name: str, r: Row) -> str:
     if r.marker_px is None:
         mk = "—" if not r.marker_failures else f"— ({r.marker_failures} frames without markers)"
     else:
-        mk = _cell(r.marker_px, r.ci.get("marker_px"), "{:.2f}") + (
+        mk = ci_cell(r.marker_px, r.ci.get("marker_px"), "{:.2f}") + (
             f" ({r.marker_failures} frames failed)" if r.marker_failures else ""
         )
     per_nfe = f"{r.seconds_per_image / r.network_evaluations:.5f}" if r.network_evaluations else "—"
     seconds = f"{r.seconds_per_image:.4f}" if r.seconds_per_image > 0 else "—"
     return (
-        f"| {name} | {_cell(r.mse, r.ci.get('mse'), '{:.2f}')} | {_cell(r.mae, r.ci.get('mae'), '{:.2f}')} "
-        f"| {_cell(r.ssim, r.ci.get('ssim'), '{:.3f}')} | {_cell(r.psnr, r.ci.get('psnr'), '{:.2f}')} | {mk} "
+        f"| {name} | {ci_cell(r.mse, r.ci.get('mse'), '{:.2f}')} | {ci_cell(r.mae, r.ci.get('mae'), '{:.2f}')} "
+        f"| {ci_cell(r.ssim, r.ci.get('ssim'), '{:.3f}')} | {ci_cell(r.psnr, r.ci.get('psnr'), '{:.2f}')} | {mk} "
         f"| {seconds} | {per_nfe} |"
     )
 
