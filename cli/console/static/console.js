@@ -1,123 +1,8 @@
-// rig console: the live rig over one WebSocket, and the run browser over plain HTTP.
-// No build step: plain browser JavaScript and the vendored uPlot (static/vendor, MIT).
+// rig console: the live rig over one WebSocket (charts.js before it, runs.js after it).
 "use strict";
-
-const $ = (id) => document.getElementById(id);
-const COMPONENTS = ["Fx", "Fy", "Fz", "Mx", "My", "Mz"];
-const COLORS = ["#d62728", "#2ca02c", "#1f77b4", "#ff7f0e", "#9467bd", "#8c564b"];
-const PHASE_COLORS = ["#1f77b433", "#2ca02c33", "#ff7f0e33", "#9467bd33", "#8c564b33", "#e377c233", "#7f7f7f33"];
-const HISTORY_S = 60;
-
-// What tests and the benchmark read: the page's own view of the rig.
-const state = {
-  frames: 0, frameIndex: -1, frameT: null, wrench: null, axes: {}, control: null, events: [], run: null,
-  flow: null, flows: 0, runFlow: null, progress: [], progressPolls: 0, rig: null,
-  progressEveryMs: 1000,  // how often the progress panel asks (a test may ask more often)
-};
-window.rigConsole = state;
-
-// A number for a legend or a tick: never "-0.000".
-function fixed(v, digits) {
-  const r = Number(v).toFixed(digits);
-  return /^-0\.?0*$/.test(r) ? r.slice(1) : r;
-}
-
-// A run's status with its reason, never the status twice ("interrupted (interrupted (SIGINT)…"), as
-// common/wording.py's status_text says it on the command line.
-function statusText(status, reason) {
-  reason = (reason || "").trim();
-  if (!reason) return status;
-  if (reason.toLowerCase().startsWith(status.toLowerCase())) {
-    let rest = reason.slice(status.length).trim();
-    if (rest.startsWith("(") && rest.includes(")")) {
-      const close = rest.indexOf(")");
-      rest = rest.slice(1, close) + rest.slice(close + 1);
-    }
-    rest = rest.replace(/^[:;, ]+/, "").trim();
-    return rest ? `${status} (${rest})` : status;
-  }
-  return `${status} (${reason})`;
-}
-
-// The newest value of series si (what the legend shows while the cursor is off the chart).
-function newest(u, si) {
-  const data = u.data[si] || [];
-  for (let k = data.length - 1; k >= 0; k--) if (data[k] != null) return data[k];
-  return null;
-}
-
-// A chart whose legend names each series with its unit and shows its value: at the cursor, else at
-// frame at() (the run browser's slider) or the newest one; every axis has ticks, labelled with its unit.
-// The least span of a chart's y axis, per unit: a gauge's noise (about 1 N·mm on Mz at rest) drawn over a
-// span of a few N·mm zigzagged the whole height and read as a solid bar; over these spans it reads as a line.
-const MIN_SPAN = { "N": 1, "N·mm": 20 };
-
-function yRange(minSpan) {
-  return (u, min, max) => {
-    if (min == null || max == null || !isFinite(min) || !isFinite(max)) return [-minSpan / 2, minSpan / 2];
-    const span = Math.max(max - min, minSpan), mid = (max + min) / 2, pad = 0.05 * span;
-    return [mid - span / 2 - pad, mid + span / 2 + pad];
-  };
-}
-
-// A chart as wide as its box, now and whenever the window is resized (a chart laid out wider than an
-// 800 px window was cut off at its right, x stopping at 52 of 86 s).
-function chartWidth(target) { return Math.max(280, Math.floor(target.clientWidth || 480)); }
-
-function chart(target, labels, units, colors, hooks, xRange, xLabel, at) {
-  const width = chartWidth(target);
-  const unitOf = (i) => (Array.isArray(units) ? units[i] : units);
-  const series = [{
-    label: xLabel || "t (s)",
-    value: (u, v, si, idx) => {
-      if (idx != null) return fixed(v, 2);
-      if (at && at() != null && u.data[0][at()] != null) return fixed(u.data[0][at()], 2);
-      return xRange ? "now" : "last";
-    },
-  }].concat(labels.map((label, i) => ({
-    label: `${label} (${unitOf(i)})`, stroke: colors[i], width: 1.5,
-    value: (u, v, si, idx) => {
-      const w = idx != null ? v : at && at() != null ? (u.data[si] || [])[at()] : newest(u, si);
-      return w == null ? "–" : fixed(w, 3);
-    },
-  })));
-  const yLabel = Array.isArray(units) ? Array.from(new Set(units)).join(", ") : units;
-  const ticks = (u, splits) => splits.map((v) => (v == null ? "" : fixed(v, Math.abs(v) < 10 ? 2 : 1).replace(/\.?0+$/, "") || "0"));
-  const u = new uPlot(
-    {
-      width, height: 210, series, hooks: hooks || {},
-      scales: {
-        x: xRange ? { time: false, range: () => xRange } : { time: false },
-        y: MIN_SPAN[yLabel] ? { range: yRange(MIN_SPAN[yLabel]) } : {},
-      },
-      padding: [hooks && hooks.drawClear ? 18 : 8, 8, 0, 0],  // the phase names' strip above the plot
-      axes: [{ label: xLabel || "s", space: 40 }, { label: yLabel, size: 60, space: 20, values: ticks }],
-      legend: { live: true },
-    },
-    [[]].concat(labels.map(() => [])),
-    target,
-  );
-  charts.push({ u, target });
-  return u;
-}
-
-const charts = [];
-window.addEventListener("resize", () => {
-  for (const c of charts) {
-    const w = chartWidth(c.target);
-    if (c.target.isConnected && w !== c.u.width) c.u.setSize({ width: w, height: c.u.height });
-  }
-});
-
-// New data, and the legend's values with it while the cursor is off the chart.
-function setChartData(u, data) {
-  u.setData(data);
-  if (u.cursor.idx == null) u.setLegend({ idx: null });
-}
 
 // ---- the live rig -------------------------------------------------------------------------
 const live = { ws: null, ref: null, wrench: [], forces: null, moments: null, limits: null, draws: [], flowScale: 5, linked: false };
-const UNITS = ["N", "N", "N", "N·mm", "N·mm", "N·mm"];
 
 function connect() {
   const ws = new WebSocket((location.protocol === "https:" ? "wss://" : "ws://") + location.host + "/ws");
@@ -156,6 +41,7 @@ async function drawFrame(buffer) {
   const n = new DataView(buffer).getUint32(0, true);
   const header = JSON.parse(new TextDecoder().decode(new Uint8Array(buffer, 4, n)));
   const bitmap = await createImageBitmap(new Blob([new Uint8Array(buffer, 4 + n)], { type: "image/jpeg" }));
+  if (state.protocol) return;  // a protocol began while this frame was decoded: its frame stays
   const canvas = $("live-frame");
   if (canvas.width !== header.width || canvas.height !== header.height) {
     canvas.width = header.width; canvas.height = header.height;
@@ -271,6 +157,9 @@ function applyLock() {
   const lock = $("lock-msg");
   lock.hidden = !running;
   lock.textContent = running ? why : "";
+  // a refusal because a protocol was running is no longer true once it has ended
+  const msg = $("control-msg");
+  if (!running && / is running \(STOP ends it\)$|a protocol is running/.test(msg.textContent)) msg.textContent = "";
 }
 
 // The protocol's own newest frame in the live view's place (fetched from its run file, as the run browser).
@@ -410,11 +299,8 @@ function jog(axis, sign) { send({ type: "jog", axis, step: sign * parseFloat($("
 
 function plotWrench() {
   if (!live.forces) return;
-  const rows = live.wrench;
-  const t0 = rows.length ? rows[rows.length - 1][0] : 0;
-  const xs = rows.map((r) => r[0] - t0);
-  setChartData(live.forces, [xs, ...[1, 2, 3].map((k) => rows.map((r) => r[k]))]);
-  setChartData(live.moments, [xs, ...[4, 5, 6].map((k) => rows.map((r) => r[k]))]);
+  plotRows(live.forces, live.wrench, [1, 2, 3], MIN_SPAN.N);
+  plotRows(live.moments, live.wrench, [4, 5, 6], MIN_SPAN["N·mm"]);
 }
 
 function setUpLive(info) {
@@ -484,274 +370,9 @@ function onKey(e) {
   if (e.key === "Escape" || e.key === " ") { send({ type: "stop" }); e.preventDefault(); return; }
   if ("1234".includes(e.key) && e.key.length === 1) { $("step").selectedIndex = Number(e.key) - 1; return; }
   const move = KEYS[e.key];
-  if (move && state.control && state.control.you) { jog(move[0], move[1]); e.preventDefault(); }
+  if (!move || !(state.control && state.control.you)) return;
+  e.preventDefault();
+  if (state.protocol) {  // refused here, as the buttons are: nothing sent for the server to refuse
+    $("control-msg").textContent = `${e.key} not sent: protocol ${state.protocol.name} is running (STOP ends it)`;
+  } else jog(move[0], move[1]);
 }
-
-// ---- the run browser --------------------------------------------------------------------
-const browser = { name: null, run: null, charts: [], timer: null };
-
-async function listRuns(select) {
-  const runs = await (await fetch("api/runs")).json();
-  const sel = $("run-select");
-  const keep = select || sel.value;
-  sel.innerHTML = '<option value="">choose a run file…</option>';
-  for (const r of runs) {
-    const o = document.createElement("option");
-    o.value = r.name; o.textContent = `${r.name} (${(r.bytes / 1e6).toFixed(1)} MB)`;
-    sel.appendChild(o);
-  }
-  if (keep && runs.some((r) => r.name === keep)) { sel.value = keep; await openRun(keep); }
-}
-
-// Each phase a shaded band over the plot (drawn before the traces); its name in the strip above the plot
-// (drawn after them, so no trace hides it), centred over its own band and only where it fits there.
-function phaseSpans(u) {
-  const run = browser.run, spans = [];
-  if (!run || !run.t_s.length) return spans;
-  let start = 0;
-  for (let i = 1; i <= run.t_s.length; i++) {
-    if (i === run.t_s.length || run.phase_index[i] !== run.phase_index[start]) {
-      // a phase's band runs from its first frame to the next phase's first frame
-      const end = i < run.t_s.length ? run.t_s[i] : run.t_s[i - 1];
-      spans.push({ x0: u.valToPos(run.t_s[start], "x", true), x1: u.valToPos(end, "x", true), p: run.phase_index[start] });
-      start = i;
-    }
-  }
-  return spans;
-}
-
-function phaseBands(u) {
-  const ctx = u.ctx, top = u.bbox.top, h = u.bbox.height;
-  for (const b of phaseSpans(u)) {
-    ctx.fillStyle = PHASE_COLORS[b.p % PHASE_COLORS.length];
-    ctx.fillRect(b.x0, top, Math.max(1, b.x1 - b.x0), h);
-  }
-}
-
-function phaseLabels(u) {
-  const run = browser.run, ctx = u.ctx, dpr = devicePixelRatio;
-  if (!run) return;
-  ctx.save();
-  ctx.font = `${10 * dpr}px sans-serif`;
-  ctx.fillStyle = "#333";
-  ctx.textBaseline = "bottom";
-  const placed = [];
-  for (const b of phaseSpans(u)) {
-    const name = run.phases[b.p] || "?", w = ctx.measureText(name).width;
-    if (w + 4 * dpr > b.x1 - b.x0) continue;  // the band is too narrow for its name: none rather than a wrong one
-    const x = (b.x0 + b.x1 - w) / 2;
-    ctx.fillText(name, x, u.bbox.top - 3 * dpr);
-    placed.push({ name, x0: x / dpr, x1: (x + w) / dpr, band: [b.x0 / dpr, b.x1 / dpr] });
-  }
-  ctx.restore();
-  u.phaseLabels = placed;  // what tests read: each label's extent (CSS px) and its own band's
-}
-
-function atSlider() {
-  const run = browser.run;
-  return run && run.frames ? Math.min(Number($("run-slider").value), run.frames - 1) : null;
-}
-
-function frameMarker(u) {
-  const run = browser.run;
-  if (!run || !run.t_s.length) return;
-  const i = Number($("run-slider").value);
-  const x = u.valToPos(run.t_s[Math.min(i, run.t_s.length - 1)], "x", true);
-  u.ctx.strokeStyle = "#000"; u.ctx.lineWidth = 2 * devicePixelRatio;
-  u.ctx.beginPath(); u.ctx.moveTo(x, u.bbox.top); u.ctx.lineTo(x, u.bbox.top + u.bbox.height); u.ctx.stroke();
-}
-
-async function openRun(name) {
-  clearTimeout(browser.timer);
-  if (!name) { $("run-view").hidden = true; return; }
-  const response = await fetch("api/run?name=" + encodeURIComponent(name));
-  const run = await response.json();
-  if (run.error) { $("run-info").textContent = run.error; return; }
-  const fresh = browser.name !== name;
-  browser.name = name; browser.run = run; state.run = run;
-  $("run-view").hidden = false;
-  $("run-flow-label").hidden = !run.sensor.endsWith("_markers");
-  if (!run.sensor.endsWith("_markers")) $("run-flow").checked = false;
-  $("run-info").textContent = `${run.protocol} · ${run.object} · ${run.sensor} · ${run.frames} / ${run.frames_planned} frames written · ` +
-    statusText(run.status, run.reason) + ` · phases: ${run.phases.join(", ")}`;
-  const slider = $("run-slider");
-  const wasAtEnd = Number(slider.value) >= Number(slider.max);
-  slider.max = String(Math.max(0, run.frames - 1));
-  if (fresh) {
-    browser.charts.forEach((c) => c.destroy());
-    const hooks = { drawClear: [phaseBands], draw: [frameMarker, phaseLabels] };
-    state.runCharts = browser.charts = [
-      chart($("run-forces"), COMPONENTS.slice(0, 3), "N", COLORS.slice(0, 3), hooks, null, "t (s) from the first frame", atSlider),
-      chart($("run-moments"), COMPONENTS.slice(3), "N·mm", COLORS.slice(3), hooks, null, "t (s) from the first frame", atSlider),
-      chart($("run-pose"), ["x", "y", "z", "θ"], ["mm", "mm", "mm", "deg"], ["#d62728", "#2ca02c", "#1f77b4", "#7f7f7f"],
-        hooks, null, "t (s) from the first frame", atSlider),
-    ];
-    $("run-reference").src = run.has.reference ? `api/run/image?kind=reference&name=${encodeURIComponent(name)}` : "";
-    slider.value = "0";
-  } else if (wasAtEnd) {
-    slider.value = slider.max;  // following a run being written: stay on its newest frame
-  }
-  const col = (rows, k) => rows.map((r) => r[k]);
-  setChartData(browser.charts[0], [run.t_s, col(run.wrench, 0), col(run.wrench, 1), col(run.wrench, 2)]);
-  setChartData(browser.charts[1], [run.t_s, col(run.wrench, 3), col(run.wrench, 4), col(run.wrench, 5)]);
-  setChartData(browser.charts[2], [run.t_s, col(run.pose, 0), col(run.pose, 1), col(run.pose, 2), col(run.pose, 3)]);
-  showFrame(Number(slider.value));
-  if (run.status === "running") browser.timer = setTimeout(() => openRun(name), 2000);
-}
-
-function showFrame(i) {
-  const run = browser.run;
-  if (!run || !run.frames) return;
-  const img = $("run-frame");
-  img.onload = () => { img.dataset.index = String(i); };
-  img.onerror = async () => {  // a frame the server refused (damaged: 422): its one line, in place of the frame
-    const m = await fetch(img.src).then((r) => r.json()).catch(() => ({}));
-    if (m.error && Number($("run-slider").value) === i) $("run-frame-caption").textContent = m.error;
-  };
-  img.src = `api/run/image?kind=frame&i=${i}&name=${encodeURIComponent(browser.name)}`;
-  const w = run.wrench[i], p = run.pose[i];
-  $("run-frame-label").textContent = `frame #${i} of ${run.frames} · t = ${fixed(run.t_s[i], 2)} s · ${run.phases[run.phase_index[i]] || "?"}`;
-  $("run-wrench").textContent = COMPONENTS.map((c, k) => `${c} ${fixed(w[k], 3)} ${UNITS[k]}`).join("  ") +
-    `   pose x ${fixed(p[0], 3)} mm  y ${fixed(p[1], 3)} mm  z ${fixed(p[2], 3)} mm  θ ${fixed(p[3], 2)} deg`;
-  $("run-wrench").dataset.index = String(i);
-  showCondition(i);
-  browser.charts.forEach((c) => { c.redraw(false); if (c.cursor.idx == null) c.setLegend({ idx: null }); });
-  showRunFlow(i);
-}
-
-// The condition panel: the object image placed at frame i's measured pose, as the model gets it.
-async function showCondition(i) {
-  const run = browser.run, img = $("run-object"), caption = $("run-object-caption");
-  if (!run.has.object) { img.removeAttribute("src"); caption.textContent = "no object image in this run"; return; }
-  const name = browser.name;
-  const response = await fetch(`api/run/image?kind=condition&i=${i}&name=${encodeURIComponent(name)}`);
-  if (name !== browser.name || Number($("run-slider").value) !== i) return;  // the slider moved on
-  if (!response.ok) {
-    const m = await response.json().catch(() => ({}));
-    caption.textContent = m.error || "the condition could not be shown";
-    return;
-  }
-  const pose = JSON.parse(response.headers.get("x-pose") || "{}");
-  const url = URL.createObjectURL(await response.blob());
-  img.onload = () => { img.dataset.index = String(i); URL.revokeObjectURL(url); };
-  img.src = url;
-  state.condition = { index: i, ...pose };
-  caption.textContent = `object at this frame's pose (the condition): x ${fixed(pose.x_mm, 3)} mm, ` +
-    `y ${fixed(pose.y_mm, 3)} mm, θ ${fixed(pose.theta_deg, 2)} deg`;
-}
-
-async function showRunFlow(i) {
-  const overlay = $("run-flow-overlay");
-  if (!$("run-flow").checked) { clearOverlay(overlay); state.runFlow = null; $("run-frame-caption").textContent = "frame"; return; }
-  const name = browser.name;
-  const m = await (await fetch(`api/run/flow?i=${i}&name=${encodeURIComponent(name)}`)).json();
-  if (name !== browser.name || Number($("run-slider").value) !== i) return;  // the slider moved on
-  if (m.error) { $("run-frame-caption").textContent = m.error; return; }
-  const run = browser.run;
-  const img = $("run-frame");
-  const summary = drawArrows(overlay, img.naturalWidth || 256, img.naturalHeight || 256, m.vectors, m.scale);
-  state.runFlow = { index: i, markers: m.markers, ...summary };
-  $("run-frame-caption").textContent = `frame, marker flow ×${m.scale} against the reference ` +
-    `(${summary.matched} of ${m.markers} markers matched, ${summary.arrows} of them moved)` + (run ? "" : "");
-}
-
-// ---- runs in progress: `rig run-protocol` writing into a listed folder -------------------
-function fmtDuration(s) {
-  s = Math.max(0, Math.round(s));
-  const h = Math.floor(s / 3600), m = Math.floor((s % 3600) / 60), sec = s % 60;
-  return (h ? `${h}h${String(m).padStart(2, "0")}m` : `${m}m`) + `${String(sec).padStart(2, "0")}s`;
-}
-
-function progressCard(p, i) {
-  let card = $(`progress-${i}`);
-  if (!card) {
-    card = document.createElement("div");
-    card.id = `progress-${i}`;
-    card.innerHTML = `<img alt="latest frame"><div><div class="title"></div><progress max="1" value="0"></progress>` +
-      `<table class="facts"><tbody></tbody></table><p class="mono pair"></p>` +
-      `<button type="button">open in the run browser</button></div>`;
-    $("progress-list").appendChild(card);
-  }
-  card.className = "progress-card" + (p.finished ? " finished" : "") + (p.stale ? " stale" : "");
-  card.dataset.run = p.run;
-  card.querySelector("button").onclick = async () => { $("run-select").value = p.run; await listRuns(p.run); };
-  const title = card.querySelector(".title");
-  if (p.error) { title.textContent = p.error; title.className = "title error"; return; }
-  title.className = "title";
-  const rows = [];
-  if (p.finished) {
-    title.textContent = `${p.run}: ended`;
-    rows.push(["status", statusText(p.file_status, p.file_reason)]);
-    rows.push(["frames", `${p.committed} / ${p.frames_planned}`]);
-  } else {
-    title.textContent = `${p.protocol} → ${p.run}` + (p.stale ? ` — no update for ${fmtDuration(p.age_s)}: the writer stopped?` : "");
-    if (p.stale) title.className = "title error";
-    const depth = p.depth_mm === null ? "" : ` (depth ${p.depth_mm.toFixed(2)} mm)`;
-    // one frame count: the frames the file holds (the run browser's count too), not the sidecar's
-    const written = p.committed != null ? p.committed : p.frame;
-    rows.push(["phase", p.phase], ["level", `${p.level}${depth}`], ["frames", `${written} / ${p.frames} written`],
-      ["ETA", `${fmtDuration(p.eta_s)} (protocol time ${p.t_protocol_s.toFixed(0)} of ${p.duration_s.toFixed(0)} s)`],
-      ["updated", `${p.age_s.toFixed(1)} s ago`]);
-    card.querySelector("progress").value = written / p.frames;
-  }
-  if (p.finished) card.querySelector("progress").value = p.frames_planned ? p.committed / p.frames_planned : 1;
-  const body = card.querySelector("tbody");
-  body.innerHTML = "";
-  for (const [k, v] of rows) {
-    const tr = document.createElement("tr");
-    tr.className = `fact-${k.toLowerCase()}`;
-    tr.innerHTML = "<td></td><td></td>";
-    tr.children[0].textContent = k; tr.children[1].textContent = v;
-    body.appendChild(tr);
-  }
-  const pair = card.querySelector(".pair");
-  if (p.file_error) pair.textContent = p.file_error;
-  else if (p.committed > 0 && p.latest_wrench) {
-    const w = p.latest_wrench, q = p.latest_pose;
-    pair.textContent = `latest pair, frame #${p.committed - 1}: ` +
-      COMPONENTS.map((c, k) => `${c} ${fixed(w[k], 3)} ${UNITS[k]}`).join("  ") +
-      `   pose x ${fixed(q[0], 3)} mm  y ${fixed(q[1], 3)} mm  z ${fixed(q[2], 3)} mm  θ ${fixed(q[3], 2)} deg`;
-    const img = card.querySelector("img");
-    const want = p.committed - 1;
-    if (img.dataset.index !== String(want)) {
-      const src = `api/run/image?kind=frame&i=${want}&name=${encodeURIComponent(p.run)}`;
-      img.onload = () => { img.dataset.index = String(want); };
-      img.src = src;
-    }
-  } else pair.textContent = "no frame committed yet";
-}
-
-async function pollProgress() {
-  try {
-    const list = await (await fetch("api/progress")).json();
-    state.progress = list;
-    state.progressPolls += 1;
-    $("progress").hidden = list.length === 0;
-    const cards = $("progress-list");
-    while (cards.children.length > list.length) cards.removeChild(cards.lastChild);
-    list.forEach(progressCard);
-    const runs = Array.from($("run-select").options).map((o) => o.value);
-    if (list.some((p) => !runs.includes(p.run))) listRuns();  // a new run file appeared
-  } catch (e) {
-    // the server is gone or restarting: keep polling, the link pill says the rest
-  }
-  setTimeout(pollProgress, state.progressEveryMs);
-}
-
-function setUpBrowser(openName) {
-  $("run-select").onchange = (e) => openRun(e.target.value);
-  $("run-refresh").onclick = () => listRuns();
-  $("run-slider").oninput = (e) => showFrame(Number(e.target.value));
-  $("run-flow").onchange = () => showRunFlow(Number($("run-slider").value));
-  listRuns(openName);
-}
-
-(async function main() {
-  const info = await (await fetch("api/info")).json();
-  if (info.rig_error) { const e = $("rig-error"); e.hidden = false; e.textContent = info.rig_error; }
-  if (info.live) setUpLive(info);
-  if (info.rig) setRig(info.rig);
-  else { setPill($("link-status"), "run browser only", ""); $("control-status").hidden = true; }
-  setUpBrowser(info.open_run);
-  pollProgress();
-})();
