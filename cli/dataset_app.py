@@ -11,6 +11,7 @@ from typing import Annotated, Optional
 
 import typer
 
+from cli import dataset_exchange as exchange
 from cli.options import number
 
 app = typer.Typer(
@@ -216,21 +217,6 @@ def merge(paths: Paths, out: Annotated[Path, typer.Option(help="The merged run f
 
 @app.command()
 @friendly
-def export(
-    path: Annotated[Path, typer.Argument(help="A run file.")],
-    out: Annotated[
-        Path, typer.Option(help="A new folder for frames/*.png, frames.csv, object.png, run.json; must not exist.")
-    ],
-):
-    """Export a run to PNG frames and a CSV of wrenches and poses (for people who don't use HDF5); the run is
-    verified whole first and the folder appears only once complete."""
-    from dataset.interchange import export_run
-
-    typer.echo(f"{out}: {export_run(path, out)} frames")
-
-
-@app.command()
-@friendly
 def compact(paths: Paths):
     """Rewrite old run files with compressed frames (lossless), verified frame by frame and row by row
     before the original is replaced; refuses a run that is being written."""
@@ -245,96 +231,6 @@ def compact(paths: Paths):
             )
         else:
             typer.echo(f"{path}: frames already compressed; unchanged")
-
-
-def _mm_per_px(ctx: typer.Context, param: typer.CallbackParam, value: Optional[float]):
-    """--mm-per-px: finite and in the import's calibration range, the option named (cli/options.py)."""
-    from dataset.interchange import MM_PER_PX
-
-    return number(low=MM_PER_PX[0], high=MM_PER_PX[1])(ctx, param, value)
-
-
-def _sensor(ctx: typer.Context, param: typer.CallbackParam, value: Optional[str]):
-    """--sensor: one of the sensor kinds (common/sensors.py), the choices named."""
-    from common.sensors import SENSOR_KINDS
-
-    if value is not None and value not in SENSOR_KINDS:
-        problem = f"must be one of {', '.join(SENSOR_KINDS)}, got {value!r}"
-        # typer hands callbacks the click parameter it annotates with its private class (cli/options.py)
-        raise typer.BadParameter(problem, ctx=ctx, param=param)  # type: ignore[arg-type]
-    return value
-
-
-@app.command("import")
-@friendly
-def import_(
-    folder: Annotated[Path, typer.Argument(help="A folder in the export format (docs/dataset.md).")],
-    out: Annotated[Path, typer.Option(help="The run file to write; must not exist.")],
-    mm_per_px: Annotated[
-        Optional[float],
-        typer.Option(help="Frame calibration, mm per pixel (default: run.json's); 0.0001 to 10.", callback=_mm_per_px),
-    ] = None,
-    object_name: Annotated[Optional[str], typer.Option("--object", help="Object name (default: run.json's).")] = None,
-    sensor: Annotated[
-        Optional[str],
-        typer.Option(
-            help="Sensor kind: rgb, rgb_markers or white_markers (default: run.json's; one of them is required).",
-            callback=_sensor,
-        ),
-    ] = None,
-    profile: Annotated[
-        Optional[Path],
-        typer.Option(
-            help="The sensor's profile TOML (rig sensor calibrate); recorded in the run file like a run's. "
-            "Default: the run file says it has none (physics renders of it then need --profile)."
-        ),
-    ] = None,
-    crop: Annotated[bool, typer.Option("--crop", help="Non-square images: keep the centre square.")] = False,
-    pad: Annotated[
-        bool, typer.Option("--pad", help="Non-square images: centre them in a square filled with their edge colour.")
-    ] = False,
-    size: Annotated[
-        Optional[int],
-        typer.Option(
-            help="Resize the square images to N x N px (mm per pixel scaled to match). Default: keep their size.",
-            min=16,
-            max=4096,
-        ),
-    ] = None,
-    ignore_columns: Annotated[
-        Optional[str],
-        typer.Option(
-            help="frames.csv columns to leave out, comma-separated (any other column the format does not know is "
-            "refused). Default: none."
-        ),
-    ] = None,
-):
-    """Import tactile PNGs, a CSV of wrenches and poses and an object image from another rig.
-
-    run.json states the pose convention (docs/dataset.md, "Pose convention"); a y-down folder is
-    converted. Non-square frames or object images need --crop or --pad."""
-    from dataset.import_images import Squaring
-    from dataset.interchange import import_run
-
-    if crop and pad:
-        raise typer.BadParameter("give --crop or --pad, not both", param_hint="'--crop' / '--pad'")
-    record = ""
-    if profile is not None:
-        from sensor_sim.profile import load_profile
-
-        record = load_profile(profile).record()
-    frames = import_run(
-        folder,
-        out,
-        mm_per_px=mm_per_px,
-        object_name=object_name,
-        sensor=sensor,
-        sensor_profile=record,
-        squaring=Squaring("crop" if crop else "pad" if pad else None, size),
-        ignore_columns=tuple(c.strip() for c in (ignore_columns or "").split(",") if c.strip()),
-        say=typer.echo,
-    )
-    typer.echo(f"{out}: {frames} frames imported")
 
 
 @app.command()
@@ -392,6 +288,10 @@ def view(
     run_console(
         config=None, sim=False, live=False, host=host, port=port, runs=[path.parent], files=[path], say=typer.echo
     )
+
+
+app.command()(friendly(exchange.export))
+app.command("import")(friendly(exchange.import_))
 
 
 def main() -> None:

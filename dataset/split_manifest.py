@@ -149,6 +149,11 @@ def load_split(directory: str | Path) -> tuple[dict, dict[str, np.ndarray]]:
     """(manifest, {part: rows}) of a split directory, checked (module docstring)."""
     directory = Path(directory)
     path = directory / MANIFEST
+    if not path.is_file() and (directory / "meta" / "info.json").is_file():
+        raise SplitError(
+            f"{directory}: a LeRobot dataset, not a split: training reads run files through a split; import it first "
+            f"(dataset import {directory} --format lerobot --out RUN.h5), then `dataset split 8:2 RUN.h5 --out SPLIT`"
+        )
     if not path.is_file():
         raise SplitError(f"{directory}: no {MANIFEST}; make one with `dataset split`")
     try:
