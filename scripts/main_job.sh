@@ -104,7 +104,16 @@ load() { cut -d' ' -f1-3 /proc/loadavg 2>/dev/null || echo "?"; }
 load_start="$(load)"
 fmt() { if (($1 < 60)); then echo "$1 s"; else printf '%d min %02d s' $(($1 / 60)) $(($1 % 60)); fi; }
 show() { printf '\033[2m$ %s\033[0m\n' "$*"; }
-run() { show "$@"; "$@"; }
+# A command stopped by Ctrl-C ends the job as `interrupted` says, whichever of the two hears the signal
+# first: `rig run-protocol` exits 3 when interrupted (its run kept for --resume), the others 130. Under
+# load bash could see the command's exit before its own SIGINT and end with that status instead.
+run() {
+    show "$@"
+    local rc=0
+    "$@" || rc=$?
+    if ((rc == 130)) || { ((rc == 3)) && [[ "$2" == run-protocol ]]; }; then interrupted; fi
+    return "$rc"
+}
 
 background=()
 stop_background() { for pid in "${background[@]}"; do kill "$pid" 2>/dev/null || true; done; }
