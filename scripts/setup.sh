@@ -31,6 +31,14 @@ if [ ! -f "$stamp" ]; then
     step "installing tactile-rig and its test and model extras (pyproject.toml: h5py, OpenCV, diffusers, selenium, ...)"
     .venv/bin/python -m pip install -q -e '.[dev,model]'
     took "$t"
+    t=$SECONDS
+    step "installing LeRobot's dataset reader, lerobot-dataset 0.4.4, without its pinned dependencies (the tests' reference reader)"
+    # --no-deps: its pins would bring opencv-python-headless (a second OpenCV beside opencv-contrib-python-headless:
+    # cv2 breaks), av<16 and huggingface_hub<0.36 (older than diffusers needs) and torchvision (built for another
+    # torch). What it needs at run time is in the dev extra (datasets, pandas, torchcodec; av, pyarrow are the
+    # project's own); torchvision is a stub in tests/lerobot_reader. `pip check` lists its unmet pins: expected.
+    .venv/bin/python -m pip install -q --no-deps lerobot-dataset==0.4.4
+    took "$t"
     rm -f .venv/.installed-*
     touch "$stamp"
 else

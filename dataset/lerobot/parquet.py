@@ -30,7 +30,7 @@ def hf_feature(feature: dict) -> dict:
     if len(shape) == 1 and shape[0] == 1:
         return {"dtype": dtype, "_type": "Value"}
     if len(shape) == 1:
-        return {"feature": {"dtype": dtype, "_type": "Value"}, "length": shape[0], "_type": "Sequence"}
+        return {"feature": {"dtype": dtype, "_type": "Value"}, "length": shape[0], "_type": "List"}
     return {"shape": shape, "dtype": dtype, "_type": f"Array{len(shape)}D"}
 
 
