@@ -239,3 +239,29 @@ def test_a_folder_from_elsewhere_imports_with_what_it_has(sim_run, tmp_path):
                 assert back.text(S.ATTR_SENSOR_KIND) == "rgb" and back.number(S.ATTR_MM_PER_PX) == 0.05
             i += n
         assert i == run.n
+
+
+HOSTILE_INFO = {
+    "fps NaN": ({"fps": float("nan")}, "fps is nan; expected a whole number of frames per second"),
+    "fps 0": ({"fps": 0}, "fps is 0; expected a whole number"),
+    "fps 2.5": ({"fps": 2.5}, "fps is 2.5; expected a whole number"),
+    "episodes -1": ({"total_episodes": -1}, "total_episodes is -1; expected a whole number >= 1"),
+    "frames as text": ({"total_frames": "26"}, "total_frames is '26'; expected a whole number"),
+    "older format": ({"codebase_version": "v2.1"}, "codebase_version 'v2.1': import reads v3.0"),
+    "no features": ({"features": []}, "features: expected an object naming each feature"),
+}
+
+
+@pytest.mark.parametrize("name", list(HOSTILE_INFO))
+def test_hostile_info_json_values_are_refused_in_one_line(exported, tmp_path, name):
+    changes, expected = HOSTILE_INFO[name]
+    _, said, _ = _damaged(exported, tmp_path, lambda f: _info(f, **changes), keep_digests=False)
+    assert "info.json: " + expected in said, said
+
+
+def test_each_episode_carries_its_contact_condition(exported):
+    condition = json.loads((exported / L.episode_folder(0) / "condition.json").read_text())
+    assert (condition["object"], condition["sensor"], condition["run_file"]) == ("sphere10mm", "rgb", "two-levels.h5")
+    assert condition["gauge"] == "ft300" and condition["simulated"] is True and condition["camera"] == "sim"
+    assert condition["sensor_profile"]["name"] == "gelsight_mini" and len(condition["sensor_profile"]["sha256"]) == 64
+    assert condition["pose_convention"]["y"] == "up" and condition["mm_per_px"] > 0
