@@ -26,7 +26,8 @@ import cv2
 from sensor_sim.calibration import Press, fit_optics
 from sensor_sim.calibration_report import estimate_noise, profile_from_fit
 from sensor_sim.elastomer import Elastomer
-from sensor_sim.profile import DEFAULT_PROFILE, save_profile
+from sensor_sim.profile import DEFAULT_PROFILE
+from sensor_sim.profile_save import save_profile
 
 MM_PER_PX = 0.0295  # as given by the data's publisher, approximate
 BALL_RADIUS_MM = 2.0

@@ -2,7 +2,7 @@
 
 Each app turns the errors it expects (bad files, values, splits) into its own one-line message;
 ``unexpected`` words any other exception as one line naming its type, as ``rig``'s commands do
-(cli/rig_app.py, ``friendly_errors``); the traceback goes to the debug log only. typer's own ways
+(cli/rig_options.py, ``friendly_errors``); the traceback goes to the debug log only. typer's own ways
 out (an exit code, a bad option) are not errors and pass through (``passes_through``).
 """
 

@@ -164,7 +164,8 @@ def calibrate(
     )
     from sensor_sim.elastomer import Elastomer, PhysicsInputError
     from sensor_sim.noise import SensorNoise
-    from sensor_sim.profile import ProfileError, load_profile, save_profile
+    from sensor_sim.profile import ProfileError, load_profile
+    from sensor_sim.profile_save import save_profile
 
     name = name or out.stem
     if not NAME.match(name):

@@ -25,6 +25,8 @@ A session guarantees (docs/safety.md):
   when the gauge is gone), the gauge stream is stopped and the camera closed; a second
   signal during that sequence waits for it. ``on_stop`` receives the outcome.
 """
+# Over 400 lines (564): the one guarded motion path (safety-critical): entry, moves, monitoring and the
+# stop-and-lift exit share one session's state, and test_motion_guard lets only it and bounded.py send moves.
 
 from __future__ import annotations
 

@@ -23,6 +23,8 @@ Claims cover the processes of one user on one machine (the runtime folder is the
 the serial ports are also locked on their device node (rig/transport/exclusive.py), which
 keeps out other users' processes of this tool too.
 """
+# Over 400 lines (462): one advisory-lock protocol: endpoint names, holder records, taking and releasing a
+# flock and the Claim holding them must agree on one lock-file format, so they change together.
 
 from __future__ import annotations
 

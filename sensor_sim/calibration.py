@@ -20,6 +20,8 @@ resolution. The fit alternates:
 ``result.notes`` names what a person should know: a parameter pinned at a bound of its
 range, a press whose fit stopped at its depth limit. numpy/scipy/cv2 only.
 """
+# Over 400 lines (432): the fit's steps (contacts, light, blur, order, refinement) share one _Fitter's
+# state and fit_optics runs them in order; the linear light fit and contact finding are apart (light_fit, contact_find).
 
 from __future__ import annotations
 
@@ -34,7 +36,7 @@ from objects.indenters import sphere
 from objects.pose import Pose
 from sensor_sim.contact_find import CalibrationError, Contact, find_contact
 from sensor_sim.elastomer import Elastomer
-from sensor_sim.light import LightModel, normal_lookup
+from sensor_sim.light import LightModel
 from sensor_sim.light_fit import (
     POSITION_RIDGES,
     OrderChoice,
@@ -43,6 +45,7 @@ from sensor_sim.light_fit import (
     fit_light_terms,
     held_out_mae,
 )
+from sensor_sim.light_tables import normal_lookup
 from sensor_sim.noise import SensorNoise
 
 __all__ = ["CalibrationError", "CalibrationResult", "Contact", "Press", "find_contact", "fit_optics"]

@@ -23,6 +23,7 @@ import cv2
 import numpy as np
 
 from common.sensors import SENSOR_KINDS
+from sensor_sim.light_tables import corner_cells, gradient, table_coordinates
 from sensor_sim.noise import SensorNoise
 
 SHADINGS = ("multiplicative", "additive")
@@ -46,42 +47,6 @@ def soft_bound_inplace(img: np.ndarray) -> np.ndarray:
     if lo.any():
         img[lo] = KNEE_LOW - (KNEE_LOW - FLOOR) * np.tanh((KNEE_LOW - img[lo]) / (KNEE_LOW - FLOOR))
     return img
-
-
-def normal_lookup(gx: np.ndarray, gy: np.ndarray, bins: int) -> tuple[np.ndarray, np.ndarray]:
-    """Bilinear cells of the surface normal in a bins × bins table over (nx, ny) ∈ [-1, 1]².
-
-    Returns flat table indices (..., 4) and weights (..., 4). The normal of any surface,
-    however steep, lies in the table: the colour it looks up is one the fit produced.
-    """
-    inv = 1.0 / np.sqrt(1.0 + gx * gx + gy * gy)
-    u = (1.0 - gx * inv) * (0.5 * (bins - 1))  # nx = -gx / |(gx, gy, 1)|, image axes
-    v = (1.0 - gy * inv) * (0.5 * (bins - 1))
-    i0 = np.clip(np.floor(u).astype(np.int32), 0, bins - 2)
-    j0 = np.clip(np.floor(v).astype(np.int32), 0, bins - 2)
-    fu, fv = (u - i0).astype(np.float32), (v - j0).astype(np.float32)
-    k = j0 * bins + i0
-    idx = np.stack([k, k + 1, k + bins, k + bins + 1], axis=-1)
-    w = np.stack([(1 - fu) * (1 - fv), fu * (1 - fv), (1 - fu) * fv, fu * fv], axis=-1)
-    return idx, w
-
-
-def _table_coordinates(gx: np.ndarray, gy: np.ndarray, bins: int) -> tuple[np.ndarray, np.ndarray]:
-    """(u, v): where the surface normal of slopes (gx, gy) falls in the table, in cells
-    (columns, rows), as ``normal_lookup`` computes them (the same operations in the same order)."""
-    s = gx * gx
-    s += 1.0
-    s += gy * gy  # 1 + gx² + gy², summed left to right as written in normal_lookup
-    np.sqrt(s, out=s)
-    inv = np.divide(1.0, s, out=s)
-    half = 0.5 * (bins - 1)
-    u = gx * inv
-    np.subtract(1.0, u, out=u)
-    u *= half
-    v = np.multiply(gy, inv, out=inv)
-    np.subtract(1.0, v, out=v)
-    v *= half
-    return u, v
 
 
 REMAP_MAX_SIDE = 32767  # cv2.remap's limit on a map's sides (SHRT_MAX)
@@ -109,29 +74,6 @@ def remap_interpolates_exactly() -> bool:
     return got.shape == want.shape and float(np.abs(got - want).max()) < 1e-3
 
 
-def _corner_cells(gx: np.ndarray, gy: np.ndarray, bins: int) -> tuple[np.ndarray, list[np.ndarray]]:
-    """``normal_lookup`` unstacked: the first corner's flat index and the four weights, each
-    shaped like ``gx``: the same numbers without building the (..., 4) arrays.
-
-    The same operations in the same order, in place where a temporary is not needed. For
-    float32 slopes the fraction ``u - i0`` is taken in float32: exact (Sterbenz: i0 <= u <= 2 i0
-    for i0 >= 1, and u - 0 = u), so it equals the float64 difference rounded to float32."""
-    u, v = _table_coordinates(gx, gy, bins)
-    # floor, then clipped to the table: u > -1 always (|gx| / |(gx, gy, 1)| <= 1 to a few ulps),
-    # so truncation toward zero, clipped, is the same cell (NaN: both casts give INT_MIN, clipped to 0)
-    i0 = u.astype(np.int32)
-    np.minimum(np.maximum(i0, 0, out=i0), bins - 2, out=i0)
-    j0 = v.astype(np.int32)
-    np.minimum(np.maximum(j0, 0, out=j0), bins - 2, out=j0)
-    u -= i0.astype(u.dtype)
-    v -= j0.astype(v.dtype)
-    fu, fv = u.astype(np.float32, copy=False), v.astype(np.float32, copy=False)
-    a, b = 1 - fu, 1 - fv
-    k = j0 * bins
-    k += i0
-    return k, [a * b, fu * b, a * fv, np.multiply(fu, fv, out=fu)]
-
-
 @dataclass
 class FramePlanes:
     """A renderer's constants for ``LightModel.change_frame`` (each (3, H, W) float32 or None):
@@ -148,12 +90,12 @@ class FramePlanes:
 def _lookup_planes(tables: list[np.ndarray], gx: np.ndarray, gy: np.ndarray, bins: int, exact: bool) -> np.ndarray:
     """(len(tables), H, W): each (bins, bins) table looked up bilinearly at the normal of (gx, gy)."""
     if not exact and gx.ndim == 2 and max(gx.shape) < REMAP_MAX_SIDE and remap_interpolates_exactly():
-        u, v = _table_coordinates(gx, gy, bins)
+        u, v = table_coordinates(gx, gy, bins)
         u, v = u.astype(np.float32, copy=False), v.astype(np.float32, copy=False)
         return np.stack([cv2.remap(t, u, v, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE) for t in tables]).astype(
             np.float32, copy=False
         )
-    k, w = _corner_cells(gx, gy, bins)
+    k, w = corner_cells(gx, gy, bins)
     out = np.empty((len(tables), *k.shape), np.float32)
     for i, table in enumerate(tables):
         flat = table.ravel()
@@ -161,24 +103,6 @@ def _lookup_planes(tables: list[np.ndarray], gx: np.ndarray, gy: np.ndarray, bin
         for j, offset in enumerate((1, bins, bins + 1), start=1):
             acc += flat.take(k + offset) * w[j]
     return out
-
-
-def _gradient(z: np.ndarray, step: np.float32) -> tuple[np.ndarray, np.ndarray]:
-    """``np.gradient(z, step)`` of a 2-D float32 array, (d/drow, d/dcol): the same operations
-    (central differences over ``2. * step`` inside, one-sided over ``step`` at the edges)
-    written straight into the results, without np.gradient's general-case bookkeeping."""
-    if z.ndim != 2 or min(z.shape) < 2:
-        gy, gx = np.gradient(z, step)
-        return gy, gx
-    two_step = 2.0 * step
-    gy, gx = np.empty_like(z), np.empty_like(z)
-    np.divide(np.subtract(z[2:], z[:-2], out=gy[1:-1]), two_step, out=gy[1:-1])
-    np.divide(np.subtract(z[1], z[0], out=gy[0]), step, out=gy[0])
-    np.divide(np.subtract(z[-1], z[-2], out=gy[-1]), step, out=gy[-1])
-    np.divide(np.subtract(z[:, 2:], z[:, :-2], out=gx[:, 1:-1]), two_step, out=gx[:, 1:-1])
-    np.divide(np.subtract(z[:, 1], z[:, 0], out=gx[:, 0]), step, out=gx[:, 0])
-    np.divide(np.subtract(z[:, -1], z[:, -2], out=gx[:, -1]), step, out=gx[:, -1])
-    return gy, gx
 
 
 @dataclass(frozen=True)
@@ -318,7 +242,7 @@ class LightModel:
 
     def slopes(self, z_mm: np.ndarray, mm_per_px: float) -> tuple[np.ndarray, np.ndarray]:
         """Blurred slopes (gx, gy) of the surface height ``z_mm`` (image axes)."""
-        gy, gx = _gradient(z_mm.astype(np.float32, copy=False), np.float32(mm_per_px))
+        gy, gx = gradient(z_mm.astype(np.float32, copy=False), np.float32(mm_per_px))
         blur_px = self.blur_mm / mm_per_px
         if blur_px > 0:
             gx = cv2.GaussianBlur(gx, (0, 0), blur_px)
@@ -350,7 +274,7 @@ class LightModel:
         frames' grey levels differ from the gather's in a few pixels in a million, by 1;
         ``exact=True`` keeps the gather)."""
         if not exact and gx.ndim == 2 and max(gx.shape) < REMAP_MAX_SIDE and remap_interpolates_exactly():
-            u, v = _table_coordinates(gx, gy, self.bins)
+            u, v = table_coordinates(gx, gy, self.bins)
             u, v = u.astype(np.float32, copy=False), v.astype(np.float32, copy=False)
             planes = np.empty((3, *u.shape), np.float32)
             for ch in range(3):
@@ -362,7 +286,7 @@ class LightModel:
                 if scale is not None:
                     planes[ch] *= scale[ch]
             return planes
-        k, w = _corner_cells(gx, gy, self.bins)
+        k, w = corner_cells(gx, gy, self.bins)
         corners = self._cells.take(k, axis=1)
         out = np.empty((3, *k.shape), np.float32)
         for ch in range(3):

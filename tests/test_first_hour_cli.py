@@ -145,7 +145,7 @@ def test_rig_sim_serve_removes_the_config_it_wrote(tmp_path):
 
 
 def test_a_config_changed_after_sim_serve_wrote_it_is_left(tmp_path, capsys):
-    from cli.rig_app import _remove_if_ours
+    from cli.sim_cmd import _remove_if_ours
 
     out = tmp_path / "rig-sim.toml"
     out.write_text("mine now\n")

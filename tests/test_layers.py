@@ -11,6 +11,7 @@ imports itself through others.
 from __future__ import annotations
 
 import ast
+import re
 from functools import cache
 from pathlib import Path
 
@@ -49,6 +50,10 @@ FORBIDDEN_BELOW = {  # finer rules inside an allowed package
 NO_TORCH = ("common", "objects", "sensor_sim", "rig", "protocols", "acquisition", "dataset")
 TORCH_ALLOWED = ("dataset.torch_dataset",)  # the PyTorch Dataset: imported by training only
 HEAVY = ("torch", "diffusers", "accelerate", "safetensors")
+# A module over LONG lines says why it is one module, near its top: "# Over 400 lines (N): <why>",
+# N within a tenth of its real length (a reason is looked at again as the file grows).
+LONG = 400
+REASON = re.compile(r"# Over 400 lines \((\d+)\)")
 
 
 def module_name(path: Path) -> str:
@@ -165,3 +170,33 @@ def test_the_contract_catches_a_wrong_arrow(tmp_path, monkeypatch):
     with pytest.raises(AssertionError, match="protocols.bad .* rig.rig"):
         test_imports_run_down_the_layers("protocols.bad")
     imports.cache_clear()
+
+
+def test_a_long_module_says_why_it_is_one():
+    """Every module over 400 lines has "# Over 400 lines (N): <why>" in its first 30 lines,
+    with N within 10 % of its line count."""
+    bad = []
+    for path in sorted(modules().values()):
+        lines = path.read_text().splitlines()
+        if len(lines) <= LONG:
+            continue
+        where = f"{path.relative_to(ROOT) if path.is_relative_to(ROOT) else path} ({len(lines)} lines)"
+        found = [m for m in (REASON.match(line) for line in lines[:30]) if m]
+        if not found:
+            bad.append(f"{where}: no '# Over 400 lines (N): <why>' in its first 30 lines; split it or say why not")
+        elif abs(int(found[0].group(1)) - len(lines)) > 0.1 * len(lines):
+            bad.append(f"{where}: its reason says {found[0].group(1)}: is the reason still true? update N")
+    assert not bad, "long modules:\n" + "\n".join(bad)
+
+
+def test_the_long_module_check_reads_n(tmp_path, monkeypatch):
+    """The checker itself: a long module without a reason, or with a stale N, is reported."""
+    body = "x = 1\n" * 450
+    for name, head in (("silent", ""), ("stale", "# Over 400 lines (300): one reason\n")):
+        fake = tmp_path / "common" / f"{name}.py"
+        fake.parent.mkdir(exist_ok=True)
+        fake.write_text('"""doc"""\n' + head + body)
+        monkeypatch.setitem(modules(), f"common.{name}", fake)
+    stale = r"stale\.py \(452 lines\): its reason says 300"
+    with pytest.raises(AssertionError, match=r"silent\.py \(451 lines\): no .*\n.*" + stale):
+        test_a_long_module_says_why_it_is_one()

@@ -170,7 +170,7 @@ def test_compare_steps_makes_each_step_count_a_setting_of_its_own(monkeypatch, t
     import typer
 
     import model.build
-    from cli.model_app import _step_counts
+    from cli.compare_cmd import _step_counts
     from model.compare import train_one
 
     assert _step_counts("400,1200") == [400, 1200] and _step_counts(None) == []

@@ -18,7 +18,8 @@ from rig.sim.rig_sim import SimulatedRig
 from sensor_sim.contact import SensorGeometry, TactileContact, UnresolvedFeature
 from sensor_sim.noise import SensorNoise
 from sensor_sim.press_render import PressRender, render_press
-from sensor_sim.profile import DEFAULT_PROFILE, default_profile, load_profile, save_profile
+from sensor_sim.profile import DEFAULT_PROFILE, default_profile, load_profile
+from sensor_sim.profile_save import save_profile
 from sensor_sim.world_contact import rig_contact
 
 runner = CliRunner()

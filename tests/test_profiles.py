@@ -20,8 +20,8 @@ from sensor_sim.profile import (
     default_profile,
     load_profile,
     profile_from_record,
-    save_profile,
 )
+from sensor_sim.profile_save import save_profile
 
 runner = CliRunner()
 QUICK = [  # sphere4mm to 0.4 mm, a small shear and twist: ~20 frames, a few seconds

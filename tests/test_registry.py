@@ -16,7 +16,8 @@ from common.errors import ConfigError
 from rig.clock import ScaledClock
 from rig.config import parse_config
 from rig.config.registry import DeviceKind, Key, Wire, kind, kinds, registered
-from rig.drivers.wrench_stream import STREAM_POLL_S, FrameSync, GaugeBase
+from rig.drivers.gauge_base import GaugeBase
+from rig.drivers.wrench_stream import STREAM_POLL_S, FrameSync
 from rig.errors import FramingError
 from rig.sim.served import serve_bytes
 from rig.sim.stream_clock import SampleSchedule
@@ -185,7 +186,7 @@ def test_rig_status_shows_the_registered_gauge(toy, tmp_path):
 
 
 def test_the_built_in_rows_are_what_the_config_and_the_cli_offer():
-    from cli.rig_app import GaugeKind
+    from cli.sim_cmd import GaugeKind
 
     assert kinds("axis") == ("zaber", "pr_drive")
     assert kinds("gauge") == ("ft300", "m8128", "ati_netft")

@@ -17,7 +17,8 @@ from sensor_sim.light import SENSOR_KINDS, LightModel, OpticsSpec, soft_bound
 from sensor_sim.noise import SensorNoise
 from sensor_sim.optics import Renderer
 from sensor_sim.press_render import PressRender
-from sensor_sim.profile import ProfileError, default_profile, load_profile, save_profile
+from sensor_sim.profile import ProfileError, default_profile, load_profile
+from sensor_sim.profile_save import save_profile
 from sensor_sim.scene import Scene
 
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "data" / "gelsight_mini"
@@ -285,7 +286,7 @@ def test_colour_lookup_is_the_same_float32_result_as_the_stacked_bilinear_table(
     formula (stack the four corners, weight, sum) bit for bit, shading included. Through
     ``cv2.remap`` (where this OpenCV interpolates exactly) it is the same to float32 rounding."""
     import sensor_sim.light as light_module
-    from sensor_sim.light import normal_lookup
+    from sensor_sim.light_tables import normal_lookup
 
     light = default_profile().light
     rng = np.random.default_rng(7)

@@ -138,7 +138,9 @@ class ProgressWatch:
                 continue
             try:
                 entry.update(latest_pair(path))
-            except (OSError, ToolError, KeyError, ValueError) as exc:
+            except (OSError, ToolError, KeyError, ValueError, RuntimeError) as exc:
+                # RuntimeError: h5py's HDF5 errors; seen while this process writes the same file (a page-started
+                # protocol) and the poll's reader closes under load: one poll's pair is missing, not the endpoint
                 entry["file_error"] = f"{path.name}: {exc}"
             out.append(entry)
         return out

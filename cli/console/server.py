@@ -9,7 +9,7 @@ and disk with --set values, before it starts).
 
 A WebSocket message must be a JSON object with a ``type``; anything else (not JSON, an array,
 a number, binary, a field of the wrong type) is answered with a ``refused`` message naming
-what was expected, and the link stays up: never a traceback.
+what was expected, and the link stays up: never a traceback (cli/console/messages.py).
 
 Bound to 127.0.0.1 by default. On any other address every request needs the access token
 printed at start (``?token=`` once, then a cookie); WebSockets from another origin are refused
@@ -42,8 +42,9 @@ from starlette.websockets import WebSocket, WebSocketDisconnect
 
 from cli.console.flow import MarkerFlow
 from cli.console.hub import Client, Hub
+from cli.console.messages import MALFORMED, handle, parse
 from cli.console.runs import ProgressWatch, RunLibrary, refusal, run_flow, run_image, run_series
-from cli.console.worker import Command, RigWorker
+from cli.console.worker import RigWorker
 from common.errors import ToolError
 from common.sensors import has_markers
 
@@ -52,7 +53,6 @@ log = logging.getLogger("rig.console")
 STATIC = Path(__file__).parent / "static"
 LOOPBACK = ("127.0.0.1", "localhost", "::1")
 COOKIE = "rig_console_token"
-MAX_STEP = 25.0  # mm or deg per jog from the page: the step selector's largest is 1
 
 
 @dataclass
@@ -243,12 +243,12 @@ def build_app(options: ConsoleOptions) -> Starlette:
                 received = await websocket.receive()
                 if received["type"] == "websocket.disconnect":
                     break
-                message = _message(received.get("text"))
+                message = parse(received.get("text"))
                 if message is None:
                     hub.tell(client, {"type": "refused", "text": MALFORMED})
                     continue
                 try:
-                    _handle(hub, worker, client, message, options.flow)
+                    handle(hub, worker, client, message, options.flow)
                 except Exception as exc:  # a message nothing checked for: refused, and the link lives on
                     log.error(
                         "console: message %.200r from %s not handled: %s: %s", message, peer, type(exc).__name__, exc
@@ -309,97 +309,6 @@ async def _pump(hub: Hub, client: Client) -> None:
         await hub.pump(client)
     except (WebSocketDisconnect, RuntimeError, ConnectionError):
         pass  # the browser closed or the server is stopping: nothing left to deliver
-
-
-MALFORMED = 'malformed message: expected a JSON object such as {"type": "stop"}'
-
-
-def _message(text: str | None) -> dict | None:
-    """A browser's message: a JSON object, else None (binary, not JSON, an array, a number…)."""
-    if text is None:
-        return None
-    try:
-        message = json.loads(text)
-    except (ValueError, RecursionError):  # not JSON, or nested deeper than the parser goes
-        return None
-    return message if isinstance(message, dict) else None
-
-
-def _handle(hub: Hub, worker: RigWorker | None, client: Client, message: dict, flow: MarkerFlow | None = None) -> None:
-    """One message from a browser."""
-    kind = message.get("type")
-    if kind == "drawn":
-        hub.frame_drawn(client, _number(message.get("t_s")))
-        return
-    if kind in ("flow", "set_reference"):  # views, not commands: any page may
-        if flow is None:
-            hub.tell(client, {"type": "refused", "text": "marker flow: this console's sensor has no markers"})
-        elif kind == "flow":
-            client.wants_flow = message.get("on") is True
-            flow.wanted = hub.flow_wanted()
-        else:
-            flow.set_reference()
-        return
-    if kind == "take_control":
-        refused = hub.take_control(client)
-        if refused:
-            hub.tell(client, {"type": "refused", "text": refused})
-        return
-    if kind == "release_control":
-        hub.release_control(client)
-        return
-    if worker is None:
-        hub.tell(client, {"type": "refused", "text": "no rig: this console only browses run files"})
-        return
-    if kind == "stop":  # from anyone: whoever watches may halt the rig (and end a protocol)
-        worker.request_stop(client.peer)
-        return
-    if kind not in ("jog", "home", "zero", "run_protocol"):
-        hub.tell(client, {"type": "refused", "text": f"unknown command {kind!r}"})
-        return
-    axis = message.get("axis") or None
-    if axis is not None and not isinstance(axis, str):
-        hub.tell(client, {"type": "refused", "text": f"{kind} refused: axis {axis!r} is not an axis name"})
-        return
-    if worker.rig_status["state"] not in ("open", "opening"):  # held elsewhere, failed or closed
-        hub.tell(client, {"type": "refused", "text": f"{kind} refused: no rig ({worker.error or 'closed'})"})
-        return
-    if hub.controller is not client:
-        holder = hub.controller.peer if hub.controller else "nobody"
-        hub.tell(client, {"type": "refused", "text": f"{kind} refused: take control first (held by {holder})"})
-        return
-    if worker.protocol_running:
-        hub.tell(client, {"type": "refused", "text": f"{kind} refused: a protocol is running (STOP ends it)"})
-        return
-    if kind == "run_protocol":
-        from cli.console.protocol_run import check_origin, check_settings, library_protocol
-
-        try:
-            origin = check_origin(message.get("origin"))
-            settings = check_settings(message.get("settings"))
-            library_protocol(message.get("name"), worker.sensor, worker.simulated, settings)  # checked as the CLI does
-        except ToolError as exc:
-            hub.tell(client, {"type": "refused", "text": f"run protocol refused: {exc}"})
-            return
-        name = message["name"]
-        worker.submit(Command("protocol", name=name, origin=origin, settings=tuple(settings), who=client.peer))
-        return
-    step = _number(message.get("step"))
-    if kind == "jog":
-        if not abs(step) <= MAX_STEP:
-            hub.tell(
-                client, {"type": "refused", "text": f"jog refused: step {message.get('step')!r} is not in ±{MAX_STEP}"}
-            )
-            return
-    worker.submit(Command(kind, axis=axis, step=step if kind == "jog" else None, who=client.peer))
-
-
-def _number(value) -> float:
-    """A number from a browser's message; NaN when it is not one (refused further on)."""
-    try:
-        return float(value)
-    except (TypeError, ValueError, OverflowError):  # OverflowError: an integer of 400 digits
-        return float("nan")
 
 
 class CannotListen(ToolError):

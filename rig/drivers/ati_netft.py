@@ -22,7 +22,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from rig.clock import Clock
-from rig.drivers.wrench_stream import STREAM_POLL_S, GaugeBase
+from rig.drivers.gauge_base import GaugeBase
+from rig.drivers.wrench_stream import STREAM_POLL_S
 from rig.errors import DeviceDisconnected, DeviceFault, DeviceTimeout, FramingError
 
 RDT_PORT = 49152

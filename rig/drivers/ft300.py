@@ -20,7 +20,8 @@ import struct
 import numpy as np
 
 from rig.clock import Clock
-from rig.drivers.wrench_stream import STREAM_POLL_S, FrameSync, GaugeBase, drain
+from rig.drivers.gauge_base import GaugeBase
+from rig.drivers.wrench_stream import STREAM_POLL_S, FrameSync, drain
 from rig.errors import DeviceDisconnected, DeviceTimeout
 from rig.transport.crc import crc_ok
 from rig.transport.modbus_bus import ModbusBus, to_signed16

@@ -17,7 +17,8 @@ import struct
 import numpy as np
 
 from rig.clock import Clock
-from rig.drivers.wrench_stream import STREAM_POLL_S, FrameSync, GaugeBase, drain
+from rig.drivers.gauge_base import GaugeBase
+from rig.drivers.wrench_stream import STREAM_POLL_S, FrameSync, drain
 from rig.errors import DeviceRejected, FramingError
 from rig.transport.serial_link import SerialLink
 

@@ -1,0 +1,49 @@
+"""What the model commands share: the --threads option, the sampler settings' parser and their one-line errors."""
+
+from __future__ import annotations
+
+import functools
+from typing import Annotated, Optional
+
+import typer
+
+Threads = Annotated[
+    Optional[int],
+    typer.Option(
+        help="torch CPU threads (default: one per core not busy with other processes, model/threads.py; or the "
+        "TACTILE_TORCH_THREADS environment variable).",
+        min=1,
+        max=256,
+    ),
+]
+
+
+def one_line_errors(fn):
+    """Expected failures (bad files, values, checkpoints, splits) become one red line and exit 1."""
+
+    @functools.wraps(fn)
+    def wrapper(*args, **kwargs):
+        from cli.one_line import passes_through, unexpected
+        from common.errors import ToolError
+        from model.checkpoint import CheckpointError
+
+        try:
+            return fn(*args, **kwargs)
+        except (ToolError, CheckpointError, ValueError, KeyError, OSError) as exc:
+            message = exc.args[0] if isinstance(exc, KeyError) and exc.args else exc
+        except Exception as exc:  # nothing expected it: still one line, naming its type (cli/one_line.py)
+            if passes_through(exc):
+                raise
+            message = unexpected(exc, "model")
+        typer.secho(f"error: {message}", fg=typer.colors.RED, err=True)
+        raise typer.Exit(1)
+
+    return wrapper
+
+
+def sampler_settings(text: str) -> list[tuple[str, int]]:
+    """--settings: sampler:steps pairs, comma-separated (BadParameter naming the option otherwise)."""
+    try:
+        return [(s.split(":")[0], int(s.split(":")[1])) for s in text.split(",")]
+    except (IndexError, ValueError):
+        raise typer.BadParameter(f"--settings: expected sampler:steps[,sampler:steps...], got {text!r}") from None
