@@ -48,13 +48,26 @@ def _job(out: Path) -> subprocess.Popen:
     )
 
 
+@pytest.fixture
+def jobs():
+    """Every job started; any still running at the end is killed with its process group, so that a hung one
+    fails this test alone (the timeout's signal method below) and leaves nothing running for the next."""
+    started: list[subprocess.Popen] = []
+    yield started
+    for job in started:
+        if job.poll() is None:
+            os.killpg(job.pid, signal.SIGKILL)
+            job.wait()
+
+
 @pytest.mark.slow
-@pytest.mark.timeout(1200)
-def test_the_main_job_interrupted_in_each_stage_continues_with_one_command(tmp_path):
+@pytest.mark.timeout(1200, method="signal")
+def test_the_main_job_interrupted_in_each_stage_continues_with_one_command(tmp_path, jobs):
     out = tmp_path / "job"
     said = []
     for banner, pattern, after_s in STOPS:
         job = _job(out)
+        jobs.append(job)
         seen = []
         waiting_for = banner
         for line in job.stdout:
@@ -78,6 +91,7 @@ def test_the_main_job_interrupted_in_each_stage_continues_with_one_command(tmp_p
         assert re.search(rf"interrupted: continue with\n  bash scripts/main_job.sh {re.escape(str(out))}\n", text), text
         assert "Traceback" not in text, text
     final = _job(out)
+    jobs.append(final)
     text, _ = final.communicate(timeout=900)
     assert final.returncode == 0, text
     assert (out / "report" / "report.md").is_file()
