@@ -69,7 +69,7 @@ def _fps(run: RunReader) -> int:
     return int(round(hz))
 
 
-def _sources(sources: list[Path], kind: str) -> tuple[list[str], dict[str, np.ndarray] | None]:
+def _sources(sources: list[Path]) -> tuple[list[str], dict[str, np.ndarray] | None]:
     if len(sources) == 1 and sources[0].is_dir():
         manifest, parts = load_split(sources[0])
         check_unchanged(manifest, sources[0])
@@ -94,7 +94,7 @@ def export_lerobot(
     out = Path(out)
     _check_out(out)
     start = clock()
-    paths, parts = _sources([Path(s) for s in sources], episode)
+    paths, parts = _sources([Path(s) for s in sources])
     with contextlib.ExitStack() as stack:
         runs = [stack.enter_context(RunReader.open(p)) for p in paths]
         fps = _fps(runs[0])
