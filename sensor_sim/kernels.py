@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import functools
 import math
+import threading
 
 import numpy as np
 import scipy.fft as sfft
@@ -150,10 +151,15 @@ def _tangential_layer_tables(nu: float) -> tuple[np.ndarray, np.ndarray, np.ndar
     return _RHO, J0 @ ((dl + dt) / 2 * _W), J2 @ ((dl - dt) / 2 * _W)
 
 
+_WARMING = threading.Lock()
+
+
 def warm_tables(nu: float) -> None:
-    """Build the layer tables for ``nu`` now (a simulator calls this off its hot path)."""
-    _layer_correction_table(nu)
-    _tangential_layer_tables(nu)
+    """Build the layer tables for ``nu`` now (a simulator calls this off its hot path). Several
+    simulators warming at once build each table once: the others wait and take it from the cache."""
+    with _WARMING:
+        _layer_correction_table(nu)
+        _tangential_layer_tables(nu)
 
 
 def tangential_layer_correction(X: np.ndarray, Y: np.ndarray, thickness_mm: float, nu: float):

@@ -1,9 +1,12 @@
 import pytest
 
+from common.blas_threads import one_blas_thread
 from rig.clock import ManualClock, SystemClock
 from rig.sim.contact import SpringContact
 from rig.sim.link import SimServer
 from rig.sim.world import SimWorld
+
+one_blas_thread()  # as every command does (cli/__init__.py): the simulators in this process run on threads
 
 
 @pytest.fixture(autouse=True)
