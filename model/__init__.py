@@ -2,7 +2,7 @@
 
 Seven sub-packages, each importing only those listed before it:
 denoiser/ (config, network, diffusion, samplers, checkpoints) · conditioning/ (the physics channels and
-their caches beside the split) · generation/ (``TrainedModel``, ``generate``) ·
+their caches beside the split, whose places cache.py alone knows) · generation/ (``TrainedModel``, ``generate``) ·
 sweeps/ (the force sweep) · evaluation/ (``evaluate``: metrics, baselines, report, figures) · training/
 (trainer, callbacks, ``train``) · compare/ (``compare``). The commands: ``train`` in cli/model_app.py,
 ``generate``, ``evaluate`` and ``compare`` in cli/*_cmd.py; each parses its options and calls its job

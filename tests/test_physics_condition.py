@@ -149,6 +149,16 @@ def test_checkpoints_without_physics_still_load_and_a_physics_one_needs_its_reco
         TrainedModel.load(run)
 
 
+def test_a_splits_caches_are_named_in_one_place_and_where_they_always_were(tmp_path):
+    """model/conditioning/cache.py names every cache's file; caches written before it are found again."""
+    from model.conditioning import cache
+
+    assert cache.folder(tmp_path) == tmp_path / "physics"
+    assert cache.pose_renders(tmp_path, "train", 32) == tmp_path / "physics" / "train-32px.npy"
+    assert cache.force_renders(tmp_path, "train", 32) == tmp_path / "physics" / "train-32px-fz.npy"
+    assert cache.force_levels(tmp_path, "train", 32, 0.25) == tmp_path / "physics" / "train-32px-fz-augment-0.25.npy"
+
+
 def test_the_cache_is_the_render_and_is_rebuilt_when_stale(tmp_path):
     from dataset.torch_dataset import TactileDataset, uint8_tensor_to_image
     from model.conditioning.baseline import PhysicsRender

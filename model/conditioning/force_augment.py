@@ -35,26 +35,14 @@ from acquisition import schema as S
 from acquisition.run_reader import RunReader
 from dataset.split import load_split
 from dataset.torch_dataset import image_to_tensor
+from model.conditioning import cache
 from model.conditioning.force_render import force_physics_cache, render_at_force
-from model.conditioning.physics_condition import (
-    PhysicsSpec,
-    cache_fresh,
-    cache_key,
-    cache_path,
-    resize,
-    split_spec,
-    write_cache,
-)
+from model.conditioning.physics_condition import PhysicsSpec, resize, split_spec
 
 
 def factors(span: float) -> tuple[float, ...]:
     """The Fz multipliers of the extra items for ``force_augment = span``."""
     return (1 - span, 1 - span / 2, 1 + span / 2, 1 + span)
-
-
-def levels_file(split_dir: str | Path, part: str, size: int, span: float) -> Path:
-    path = cache_path(split_dir, part, size)
-    return path.with_name(f"{path.stem}-fz-augment-{span:g}.npy")
 
 
 def levels_cache(
@@ -70,11 +58,17 @@ def levels_cache(
     the split's row order — per level the render, then the frame moved to that load — beside a .json of its
     key, rebuilt when the key differs (the key names the runs' contents: new frames, new cache). Returns
     the .npy's path."""
-    path = levels_file(split_dir, part, size, span)
-    key = {**cache_key(split_dir, part, size, spec or split_spec(split_dir)), "depth": "force"}
-    key["force_factors"] = list(factors(span))
-    key["moved"] = "scaled about the rendered contact by sqrt of its area ratio"
-    if cache_fresh(path, key, log):
+    path = cache.force_levels(split_dir, part, size, span)
+    key = cache.key(
+        split_dir,
+        part,
+        size,
+        (spec or split_spec(split_dir)).to_meta(),
+        depth="force",
+        force_factors=list(factors(span)),
+        moved="scaled about the rendered contact by sqrt of its area ratio",
+    )
+    if cache.fresh(path, key, log):
         return path
     manifest, parts = load_split(split_dir)
     rows = parts[part]
@@ -115,7 +109,7 @@ def levels_cache(
             f.close()
     for note in sorted(notes):
         log(f"  force augmentation: {note}")
-    write_cache(path, images, key)
+    cache.write(path, images, key)
     return path
 
 

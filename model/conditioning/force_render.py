@@ -24,15 +24,8 @@ import numpy as np
 from acquisition import schema as S
 from acquisition.run_reader import RunReader
 from dataset.split import load_split
-from model.conditioning.physics_condition import (
-    PhysicsSpec,
-    cache_fresh,
-    cache_key,
-    cache_path,
-    resize,
-    split_spec,
-    write_cache,
-)
+from model.conditioning import cache
+from model.conditioning.physics_condition import PhysicsSpec, resize, split_spec
 
 DEEPEST = 1.5  # gel thicknesses: how deep the simulator's depth search goes (sensor_sim/load_match.py)
 
@@ -61,11 +54,6 @@ def render_at_force(renderer, pose, wrench: np.ndarray, fz: float, size: int, no
     return resize(renderer.render(at, moved), size)
 
 
-def cache_file(split_dir: str | Path, part: str, size: int) -> Path:
-    path = cache_path(split_dir, part, size)
-    return path.with_name(f"{path.stem}-fz.npy")
-
-
 def force_physics_cache(
     split_dir: str | Path,
     part: str,
@@ -78,9 +66,9 @@ def force_physics_cache(
     (frames, size, size, 3) BGR uint8 in the split's row order beside a .json of its key (the pose
     cache's key and ``"depth": "force"``), rebuilt when the key differs; what TactileDataset(physics=...)
     serves. Returns the .npy's path."""
-    path = cache_file(split_dir, part, size)
-    key = {**cache_key(split_dir, part, size, spec or split_spec(split_dir)), "depth": "force"}
-    if cache_fresh(path, key, log):
+    path = cache.force_renders(split_dir, part, size)
+    key = cache.key(split_dir, part, size, (spec or split_spec(split_dir)).to_meta(), depth="force")
+    if cache.fresh(path, key, log):
         return path
     manifest, parts = load_split(split_dir)
     rows = parts[part]
@@ -107,5 +95,5 @@ def force_physics_cache(
             log(f"  physics channels: {k + 1}/{len(rows)} frames")
     for note in sorted(notes):
         log(f"  physics channels: {note}")
-    write_cache(path, images, key)  # replaced whole, images first
+    cache.write(path, images, key)  # replaced whole, images first
     return path

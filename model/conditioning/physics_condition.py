@@ -21,9 +21,6 @@ The split's values (object, sensor, scale, profile) are read back from the run f
 
 from __future__ import annotations
 
-import hashlib
-import json
-import os
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Callable
@@ -35,10 +32,8 @@ from acquisition import schema as S
 from acquisition.run_reader import RunReader
 from common.errors import ToolError
 from dataset.split import check_unchanged, load_split
+from model.conditioning import cache
 from model.conditioning.baseline import BaselineUnavailable, NoProfile, ObjectRender, no_profile
-
-CACHE_DIR = "physics"  # inside the split directory
-CACHE_VERSION = 3  # bump when the render or the cache layout changes: every cache is rebuilt (3: issue 26 optics)
 
 
 class PhysicsUnavailable(BaselineUnavailable):
@@ -181,52 +176,6 @@ def _named(profile) -> str:
     return f"{profile.name} (sha256 {profile.content_hash()[:12]}…, file {profile.path})"
 
 
-def cache_key(split_dir: str | Path, part: str, size: int, spec: PhysicsSpec) -> dict:
-    """What the cache depends on: the runs' identities, the part's rows, the size, the render's inputs."""
-    manifest, parts = load_split(split_dir)
-    return {
-        "version": CACHE_VERSION,
-        "part": part,
-        "size": int(size),
-        "rows_sha1": hashlib.sha1(np.ascontiguousarray(parts[part]).tobytes()).hexdigest(),
-        "runs": [[r["path"], r["identity"]["sha256"]] for r in manifest["runs"]],
-        "spec": spec.to_meta(),
-    }
-
-
-def cache_path(split_dir: str | Path, part: str, size: int) -> Path:
-    return Path(split_dir) / CACHE_DIR / f"{part}-{size}px.npy"
-
-
-def cache_fresh(path: Path, key: dict, log: Callable[[str], None]) -> bool:
-    """Whether the render cache ``path`` exists with the .json key ``key`` beside it; a stale
-    one (another split, size or profile) is said in ``log`` and is to be rebuilt."""
-    meta = path.with_suffix(".json")
-    if not (path.is_file() and meta.is_file()):
-        return False
-    try:
-        if json.loads(meta.read_text()) == key:
-            return True
-    except (OSError, json.JSONDecodeError):
-        pass
-    log(f"physics channels cache {path}: stale (the split, size or profile changed); rebuilding")
-    return False
-
-
-def write_cache(path: Path, images: np.ndarray, key: dict) -> None:
-    """The render cache and its key beside it. Each file replaced whole, images first: a reader
-    (another process of a multi-GPU run, which renders the same images) never sees half a file,
-    and a crash before the key leaves the old key, which no longer matches: the next run rebuilds."""
-    meta = path.with_suffix(".json")
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f"{path.stem}.{os.getpid()}.tmp.npy")
-    np.save(tmp, images)
-    os.replace(tmp, path)
-    tmp_meta = meta.with_name(f"{meta.stem}.{os.getpid()}.tmp.json")
-    tmp_meta.write_text(json.dumps(key, indent=1) + "\n")
-    os.replace(tmp_meta, meta)
-
-
 def physics_cache(
     split_dir: str | Path,
     part: str,
@@ -238,9 +187,9 @@ def physics_cache(
     """The part's physics renders at ``size`` px through ``spec`` (default: ``split_spec``'s), (frames, size,
     size, 3) BGR uint8 in the split's row order, as a .npy beside a .json of its key; rebuilt when
     the key differs (other runs, rows, size, profile or render version). Returns the .npy's path."""
-    path = cache_path(split_dir, part, size)
-    key = cache_key(split_dir, part, size, spec or split_spec(split_dir))
-    if cache_fresh(path, key, log):
+    path = cache.pose_renders(split_dir, part, size)
+    key = cache.key(split_dir, part, size, (spec or split_spec(split_dir)).to_meta())
+    if cache.fresh(path, key, log):
         return path
     manifest, parts = load_split(split_dir)
     rows = parts[part]
@@ -263,7 +212,7 @@ def physics_cache(
         images[k] = resize(renderers[run].render(poses[run][int(frame)], wrenches[run][int(frame)]), size)
         if (k + 1) % step == 0 or k + 1 == len(rows):
             log(f"  physics render: {k + 1}/{len(rows)} frames")
-    write_cache(path, images, key)
+    cache.write(path, images, key)
     return path
 
 
