@@ -1,6 +1,6 @@
 """Contact-condition-guided diffusion model: object image at the contact pose + wrench → tactile image.
 
-Seven sub-packages, each importing only those listed before it:
+Seven sub-packages, each importing only those listed before it (``MODEL_ROOMS`` in tests/test_layers.py):
 denoiser/ (config, network, diffusion, samplers, checkpoints) · conditioning/ (the physics channels and
 their caches beside the split, whose places cache.py alone knows) · generation/ (``TrainedModel``, ``generate``) ·
 sweeps/ (the force sweep) · evaluation/ (``evaluate``: metrics, baselines, report, figures) · training/
