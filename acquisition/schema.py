@@ -164,7 +164,7 @@ ATTRS = (
     (ATTR_PHASES, "str[]"),
 )
 # Root attributes a file may lack (written only by some runs, or added after older files);
-# readers treat a missing one as "not recorded" (model/baseline.py: the default profile).
+# readers treat a missing one as "not recorded" (model/conditioning/baseline.py: the default profile).
 # ATTR_ATTRS_SHA256: files written before it lack it (readable as before; validate notes it).
 OPTIONAL_ATTRS = (
     (ATTR_SENSOR_PROFILE, "str"),

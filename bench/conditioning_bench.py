@@ -8,7 +8,7 @@ Trains one model per choice on the same split with the same seed, steps and batc
 (same data order, same noise), then evaluates each on the same frames of ``--part`` (a
 held-out object's part for the question "does it generalise") with the same sampler and
 seed, beside the physics render itself. Prints one table (MSE, MAE, SSIM, PSNR, marker
-error for marker sensors, s/image); the defaults in model/config.py follow it.
+error for marker sensors, s/image); the defaults in model/denoiser/config.py follow it.
 """
 
 from __future__ import annotations
@@ -52,10 +52,10 @@ def main() -> None:
 
     import torch
 
-    from model.build import build
-    from model.config import PREDICTIONS, PRESET_TRAINING, preset
-    from model.evaluate import evaluate
-    from model.trainer import TrainConfig
+    from model.denoiser.config import PREDICTIONS, PRESET_TRAINING, preset
+    from model.evaluation.evaluate import evaluate
+    from model.training.build import build
+    from model.training.trainer import TrainConfig
 
     if args.threads:
         torch.set_num_threads(args.threads)

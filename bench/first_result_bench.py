@@ -70,7 +70,7 @@ def main() -> None:
         type=int,
         default=0,
         metavar="ROUNDS",
-        help="instead: ROUNDS of training and sampling bursts at 1 then 2 threads (model/threads.py's rule)",
+        help="instead: ROUNDS of training and sampling bursts at 1 then 2 threads (model/denoiser/threads.py's rule)",
     )
     ap.add_argument("--busy", action="store_true", help="with --measure-threads: keep one core busy meanwhile")
     args = ap.parse_args()
@@ -121,11 +121,11 @@ def measure_threads(runs: list[str], work: Path, rounds: int, busy: bool) -> Non
     import torch
 
     from dataset.split import make_split
-    from model.build import build
-    from model.config import preset
-    from model.inference import generate_items
-    from model.threads import running_now
-    from model.trainer import TrainConfig
+    from model.denoiser.config import preset
+    from model.denoiser.threads import running_now
+    from model.generation.inference import generate_items
+    from model.training.build import build
+    from model.training.trainer import TrainConfig
 
     split = work / "split"
     if not (split / "split.json").exists():
@@ -171,7 +171,7 @@ def eval_items(split: Path, size: int, n: int) -> tuple[Any, list[dict], list[np
 
 
 def scores(real: list[np.ndarray], made: list[np.ndarray]) -> dict[str, float]:
-    from model.metrics import image_metrics
+    from model.evaluation.metrics import image_metrics
 
     m = [image_metrics(r, g) for r, g in zip(real, made)]
     return {k: float(np.mean([x[k] for x in m])) for k in ("mse", "mae", "ssim", "psnr")}
@@ -184,7 +184,7 @@ def baseline_rows(split: Path, size: int, n: int) -> list[dict]:
 
     from acquisition import schema as S
     from dataset.torch_dataset import TactileDataset, spread, uint8_tensor_to_image
-    from model.baseline import render_frames
+    from model.conditioning.baseline import render_frames
 
     data, items, real = eval_items(split, size, n)
     refs = {}
@@ -220,10 +220,10 @@ def baseline_rows(split: Path, size: int, n: int) -> list[dict]:
 def run_candidate(cand: Candidate, split: Path, work: Path, n: int, sampler: str, steps: int) -> list[dict]:
     import dataclasses
 
-    from model.build import build
-    from model.config import preset
-    from model.inference import generate_items
-    from model.trainer import TrainConfig
+    from model.denoiser.config import preset
+    from model.generation.inference import generate_items
+    from model.training.build import build
+    from model.training.trainer import TrainConfig
 
     model_cfg = dataclasses.replace(preset("tiny"), image_size=cand.size, block_out_channels=cand.widths)
     train_cfg = TrainConfig(

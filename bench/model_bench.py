@@ -38,9 +38,9 @@ def main() -> None:
 
     import torch
 
-    from model.config import preset
-    from model.diffusion import Diffusion
-    from model.registry import build_network
+    from model.denoiser.config import preset
+    from model.denoiser.diffusion import Diffusion
+    from model.denoiser.registry import build_network
 
     if args.threads:
         torch.set_num_threads(args.threads)
@@ -49,7 +49,7 @@ def main() -> None:
     if args.config:
         import dataclasses
 
-        from model.config_file import load_model_file
+        from model.training.config_file import load_model_file
 
         cfg = dataclasses.replace(load_model_file(args.config)[0], **over)
     else:

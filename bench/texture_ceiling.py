@@ -1,7 +1,7 @@
 """How much of a board's texture a model of each resolution could show at best.
 
 For each board run (a run file of `rig run-protocol woven|irregular|ridged`), every k-th
-pressed frame is scored (model/texture_measure.py, at the run's own resolution, inside the
+pressed frame is scored (model/evaluation/texture_measure.py, at the run's own resolution, inside the
 contact) against the blurred-contact baseline at each model size — the real frame shrunk to
 the model's resolution and back: the most texture a perfect model of that size can give.
 A size whose pixel is more than half the board's shortest texture period cannot show the
@@ -23,7 +23,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from acquisition.run_reader import RunReader  # noqa: E402
 from common.machine import describe  # noqa: E402
-from model.texture_eval import blurred_contact, board_band, texture_rows  # noqa: E402
+from model.evaluation.texture_eval import blurred_contact, board_band, texture_rows  # noqa: E402
 
 
 def main() -> None:

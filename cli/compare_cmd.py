@@ -1,6 +1,6 @@
 """``compare``: candidate training settings over seeds on one split, each evaluated alike, in one report.
 
-The options are parsed and checked here; model/compare_job.py trains, evaluates and writes compare.md.
+The options are parsed and checked here; model/compare/compare_job.py trains, evaluates and writes compare.md.
 """
 
 from __future__ import annotations
@@ -77,10 +77,10 @@ def compare(
     """Train every candidate setting with each seed on one split, evaluate each alike, and report per test part
     the mean ± spread over seeds beside the baselines; a setting leads only where the difference exceeds the
     spread."""
-    from model.compare import Candidate
-    from model.compare_job import CompareOptions
-    from model.compare_job import compare as run_comparison
-    from model.threads import set_threads
+    from model.compare.compare import Candidate
+    from model.compare.compare_job import CompareOptions
+    from model.compare.compare_job import compare as run_comparison
+    from model.denoiser.threads import set_threads
 
     threads_line = set_threads(threads)  # said once the comparison is set up
     cands = [Candidate.parse(c) for c in candidate]

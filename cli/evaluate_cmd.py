@@ -1,6 +1,6 @@
 """``evaluate``: a trained run's metrics on a split's test parts against run time, and its report.
 
-The options are parsed and checked here; model/evaluate_job.py evaluates and writes the report.
+The options are parsed and checked here; model/evaluation/evaluate_job.py evaluates and writes the report.
 """
 
 from __future__ import annotations
@@ -91,9 +91,9 @@ def evaluate(
 ):
     """MSE, MAE, SSIM, PSNR (and marker error) per sampler setting against seconds per image, beside the
     physics render and the paper's table."""
-    from model.evaluate_job import EvaluateOptions
-    from model.evaluate_job import evaluate as evaluate_checkpoint
-    from model.threads import set_threads
+    from model.denoiser.threads import set_threads
+    from model.evaluation.evaluate_job import EvaluateOptions
+    from model.evaluation.evaluate_job import evaluate as evaluate_checkpoint
 
     set_threads(threads)  # the report's context states the count
     pairs = sampler_settings(settings)

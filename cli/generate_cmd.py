@@ -1,6 +1,6 @@
 """``generate``: a tactile frame for an object, a wrench and a pose, or every frame of a split's part.
 
-The options are parsed and checked here; model/generate_job.py loads the model and makes the frames.
+The options are parsed and checked here; model/generation/generate_job.py loads the model and makes the frames.
 """
 
 from __future__ import annotations
@@ -90,9 +90,9 @@ def generate(
 ):
     """Generate a tactile frame for an object, a wrench and a pose, or every frame of a split."""
     from dataset.import_checks import FORCE_N, POSE_LIMIT, TORQUE_NMM
-    from model.generate_job import GenerateOptions
-    from model.generate_job import generate as generate_frames
-    from model.threads import set_threads
+    from model.denoiser.threads import set_threads
+    from model.generation.generate_job import GenerateOptions
+    from model.generation.generate_job import generate as generate_frames
 
     set_threads(threads)  # the output stays the frame's line (or one error line)
     w: list[float] | None = None

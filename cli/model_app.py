@@ -1,8 +1,8 @@
 """``train``, ``generate``, ``evaluate`` and ``compare``: the contact-condition-guided diffusion model.
 
 ``train`` is here; the others' options are in cli/generate_cmd.py, cli/evaluate_cmd.py and
-cli/compare_cmd.py, and each command's work in model/ (``train_job.py``, ``generate_job.py``,
-``evaluate_job.py``, ``compare_job.py``). The console scripts' entry points are here.
+cli/compare_cmd.py, and each command's work in model/ (``training/train_job.py``, ``generation/generate_job.py``,
+``evaluation/evaluate_job.py``, ``compare/compare_job.py``). The console scripts' entry points are here.
 """
 
 from __future__ import annotations
@@ -137,8 +137,8 @@ def train(
 
     Several GPUs: `accelerate launch -m cli.model_app --data ... --out ...` runs this same command.
     """
-    from model.train_job import TrainOptions
-    from model.train_job import train as run_training
+    from model.training.train_job import TrainOptions
+    from model.training.train_job import train as run_training
 
     options = TrainOptions(
         data,

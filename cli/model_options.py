@@ -10,8 +10,8 @@ import typer
 Threads = Annotated[
     Optional[int],
     typer.Option(
-        help="torch CPU threads (default: one per core not busy with other processes, model/threads.py; or the "
-        "TACTILE_TORCH_THREADS environment variable).",
+        help="torch CPU threads (default: one per core not busy with other processes, model/denoiser/threads.py; "
+        "or the TACTILE_TORCH_THREADS environment variable).",
         min=1,
         max=256,
     ),
@@ -25,7 +25,7 @@ def one_line_errors(fn):
     def wrapper(*args, **kwargs):
         from cli.one_line import passes_through, unexpected
         from common.errors import ToolError
-        from model.checkpoint import CheckpointError
+        from model.denoiser.checkpoint import CheckpointError
 
         try:
             return fn(*args, **kwargs)

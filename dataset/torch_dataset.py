@@ -8,7 +8,7 @@ lazily in each worker process (h5py handles do not survive fork) through the ver
 one named with its file and frame), and kept open for the worker's life. Besides the model's inputs, an
 item carries any per-frame fields of the run-file table asked for (``fields=``), so a
 field added to the table reaches training without touching this module, and the physics
-render of each frame when a cache of them is given (``physics=``, model/physics_condition.py).
+render of each frame when a cache of them is given (``physics=``, model/conditioning/physics_condition.py).
 """
 
 from __future__ import annotations
@@ -79,7 +79,7 @@ class TactileDataset(Dataset):
     ``to_model_inputs`` scales them to [−1, 1]. ``fields``: per-frame fields of the run-file
     table (acquisition/schema.py) added to each item under their names, as tensors; a run
     written before an optional field existed serves its fill value. ``physics``: a cache of the
-    part's physics renders (model/physics_condition.py's ``physics_cache``, a .npy of
+    part's physics renders (model/conditioning/physics_condition.py's ``physics_cache``, a .npy of
     (frames, size, size, 3) BGR uint8 in row order) served as ``physics`` (3, s, s) RGB uint8.
     Each item also names its run file (``run_path``)."""
 

@@ -1,10 +1,10 @@
 """Contact-condition-guided diffusion model: object image at the contact pose + wrench → tactile image.
 
-config.py (ModelConfig, presets) · registry.py (which network) → network.py (the U-Net) ·
-diffusion.py (schedule, loss, guided denoiser) → samplers.py (DDIM, DDPM, DPM-Solver++) ·
-trainer.py (the loop) + callbacks.py (progress, validation images, checkpoints), joined by
-build.py · checkpoint.py (safetensors + JSON) · inference.py (``generate``) · evaluate.py,
-metrics.py, markers.py, baseline.py, figures.py (``evaluate`` and its report). The commands: ``train`` in
-cli/model_app.py, ``generate``, ``evaluate`` and ``compare`` in cli/*_cmd.py; each parses its options and calls
-its job here (train_job.py, generate_job.py, evaluate_job.py, compare_job.py).
+Seven sub-packages, each importing only those listed before it (``MODEL_ROOMS`` in tests/test_layers.py):
+denoiser/ (config, network, diffusion, samplers, checkpoints) · conditioning/ (the physics channels and
+their caches beside the split, whose places cache.py alone knows) · generation/ (``TrainedModel``, ``generate``) ·
+sweeps/ (the force sweep) · evaluation/ (``evaluate``: metrics, baselines, report, figures) · training/
+(trainer, callbacks, ``train``) · compare/ (``compare``). The commands: ``train`` in cli/model_app.py,
+``generate``, ``evaluate`` and ``compare`` in cli/*_cmd.py; each parses its options and calls its job
+here (training/train_job.py, generation/generate_job.py, evaluation/evaluate_job.py, compare/compare_job.py).
 """

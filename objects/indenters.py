@@ -8,7 +8,7 @@ point at local coordinates (u, v) mm, where the face is not there it is FAR_MM.
 ``feature_mm`` is the face's smallest feature (a sphere's diameter, a ring's width, a
 texture's half period): a contact solver needs about two cells across it to see it.
 ``texture_mm`` is a texture board's band of texture periods (shortest, longest), where the
-texture-fidelity measure looks (model/texture_measure.py); None for a shape.
+texture-fidelity measure looks (model/evaluation/texture_measure.py); None for a shape.
 ``object_image`` is what a camera looking at the contact face sees: the condition
 image of the learned model.
 """

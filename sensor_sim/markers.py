@@ -1,7 +1,7 @@
 """Markers on the gel: find them in a frame, match them to a reference frame's.
 
 Image analysis of a tactile frame, real or simulated (numpy, OpenCV, SciPy; no torch), used
-by the model's marker metrics (model/markers.py) and the console's marker-flow arrows.
+by the model's marker metrics (model/evaluation/markers.py) and the console's marker-flow arrows.
 Markers are dark blobs found by adaptive thresholding and contours. The metrics match a
 reference frame's markers to a frame's at the least total distance (``marker_flow``); the
 console's live arrows pair mutual nearest neighbours (``displacements``), much faster.

@@ -12,7 +12,7 @@ with the profile's optics, background and noise, at the profile's frame (or anot
 size and scale: a run's). Poses are the rig's: x, y (mm from the frame's centre, +y towards
 the frame's top), z (mm, negative pressed in), θ (deg). Every render call of the project goes
 through here: ``rig sensor render``, the calibration's fit and contact sheet, the physics row
-of ``evaluate`` and the physics conditioning (model/baseline.py's ``ObjectRender``).
+of ``evaluate`` and the physics conditioning (model/conditioning/baseline.py's ``ObjectRender``).
 
 Each render is of the pose alone, without the friction history of a run (the simulated rig
 keeps one); for a marker sensor a measured wrench stands in for it (sensor_sim/load_match.py).

@@ -18,8 +18,8 @@ def _centroid(img: np.ndarray) -> np.ndarray:
 
 
 def _model(size: int, mm_per_px: float, frame_px: int):
-    from model.config import ModelConfig
-    from model.inference import TrainedModel
+    from model.denoiser.config import ModelConfig
+    from model.generation.inference import TrainedModel
 
     cfg = ModelConfig(image_size=size, block_out_channels=(16, 16))
     return TrainedModel(None, None, cfg, np.zeros(6), np.ones(6), mm_per_px, frame_px, None)
@@ -77,8 +77,8 @@ def test_generate_physics_channels_equal_training_ones(tmp_path, frame_px, size,
 
     from acquisition import schema as S
     from dataset.torch_dataset import TactileDataset, uint8_tensor_to_image
-    from model.inference import add_physics
-    from model.physics_condition import physics_cache, split_spec
+    from model.conditioning.physics_condition import physics_cache, split_spec
+    from model.generation.inference import add_physics
 
     split = make_split_dir(tmp_path, n=24, size=frame_px, kind=kind)
     data = TactileDataset(split, "train", size=size, physics=physics_cache(split, "train", size))

@@ -94,7 +94,7 @@ def test_the_processes_shares_of_a_step_are_disjoint_and_make_the_global_batch()
     """The sharding itself, without launching: each share is a disjoint slice of the single-process batch."""
     from types import SimpleNamespace
 
-    from model.trainer import TrainConfig, Trainer
+    from model.training.trainer import TrainConfig, Trainer
 
     t = Trainer.__new__(Trainer)
     t.config, t.data = TrainConfig(batch_size=8, seed=3), list(range(32))

@@ -142,8 +142,8 @@ def test_evaluate_on_an_object_split_writes_one_report_with_both_parts(runs, tmp
 
 
 def _train(split, out):
-    from model.build import build
-    from model.trainer import TrainConfig
+    from model.training.build import build
+    from model.training.trainer import TrainConfig
 
     trainer = build(SMALL, TrainConfig(steps=2, batch_size=4, checkpoint_every=100), split, out, log=lambda m: None)
     trainer.train()
@@ -155,7 +155,7 @@ def test_sweep_range_of_a_split_written_before_the_percentiles(runs, tmp_path):
     """A split.json without wrench_percentiles: the range comes from the training part's frames."""
     from dataset.split import PERCENTILES, make_split
     from dataset.torch_dataset import TactileDataset
-    from model.evaluate_sweep import _train_percentiles
+    from model.sweeps.evaluate_sweep import _train_percentiles
 
     make_split(runs, "8:2", tmp_path / "s", hold_out=["heart"])
     manifest = json.loads((tmp_path / "s" / "split.json").read_text())

@@ -1,10 +1,10 @@
-"""Figure labels are wrapped to the figure's width, never cut off (model/figures.py)."""
+"""Figure labels are wrapped to the figure's width, never cut off (model/evaluation/figures.py)."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from model.figures import samples_figure, wrapped
+from model.evaluation.figures import samples_figure, wrapped
 
 LABEL = "Fz 1.41 N  Fx +0.00 N  Fy +0.00 N  Mz +0.0 N·mm | x -3.90  y +3.17  z -1.74 mm  θ +0.0°"
 
@@ -32,7 +32,7 @@ def test_the_samples_figure_gives_a_wrapped_label_its_own_strips(tmp_path):
 def test_an_example_label_has_units_and_no_negative_zero():
     import torch
 
-    from model.evaluate import _label
+    from model.evaluation.evaluate import _label
 
     class Data:
         std, mean = np.ones(6), np.zeros(6)

@@ -1,5 +1,5 @@
 """Issue 17's pieces: elapsed/time-left arithmetic (common/eta.py), the torch thread rule
-(model/threads.py), the training progress line with its time left, the trainer's item cache."""
+(model/denoiser/threads.py), the training progress line with its time left, the trainer's item cache."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import sys
 import pytest
 
 from common.eta import Eta, format_duration, main, staged_left, time_left
-from model.threads import choose_threads, decide, parse_override, running_now
+from model.denoiser.threads import choose_threads, decide, parse_override, running_now
 
 
 class FakeClock:
@@ -127,8 +127,8 @@ def test_thread_overrides_are_checked_and_win():
 def test_the_progress_line_shows_rate_elapsed_and_time_left():
     import torch
 
-    from model.callbacks import Progress
-    from model.trainer import TrainConfig, Trainer
+    from model.training.callbacks import Progress
+    from model.training.trainer import TrainConfig, Trainer
     from tests.test_trainer import LinearLoss, toy_data
 
     clock, lines = FakeClock(), list[str]()
@@ -152,7 +152,7 @@ def test_the_progress_line_shows_rate_elapsed_and_time_left():
 def test_the_trainer_reads_each_item_once_and_trains_the_same():
     import torch
 
-    from model.trainer import TrainConfig, Trainer
+    from model.training.trainer import TrainConfig, Trainer
     from tests.test_trainer import LinearLoss, toy_data
 
     class Counting(list):
@@ -168,7 +168,7 @@ def test_the_trainer_reads_each_item_once_and_trains_the_same():
     losses = cached.train()
     assert Counting.reads == len(data)  # 9 steps of 4 from 12 items: each read once
 
-    import model.trainer as T
+    import model.training.trainer as T
 
     torch.manual_seed(0)
     old, T.ITEM_CACHE_BYTES = T.ITEM_CACHE_BYTES, 0  # nothing kept: every step reads its items

@@ -1,4 +1,5 @@
-"""Force augmentation and the residual's gain (model/force_augment.py, model/diffusion.py; CPU, tiny)."""
+"""Force augmentation and the residual's gain (model/conditioning/force_augment.py, model/denoiser/diffusion.py;
+CPU, tiny)."""
 
 from __future__ import annotations
 
@@ -7,7 +8,7 @@ import json
 import numpy as np
 import pytest
 
-from model.config import ModelConfig
+from model.denoiser.config import ModelConfig
 from tests.test_model_core import SMALL, write_run
 
 RESIDUAL = ModelConfig(
@@ -21,8 +22,8 @@ def _split(tmp_path, n=20, size=32):
     frame the render without load, so a frame moved to another load can be checked against the render
     at that load."""
     from dataset.split import make_split
-    from model.force_render import force_pose
-    from model.physics_condition import split_spec
+    from model.conditioning.force_render import force_pose
+    from model.conditioning.physics_condition import split_spec
 
     pose = np.array([1.0, -1.0, -0.5, 0.0])
     fzs = [0.0] + [1.0 + 2.0 * i / n for i in range(1, n)]
@@ -59,7 +60,7 @@ def test_a_gained_residual_samples_back_differences_past_the_unit_range():
     not ±1, so an oracle of the residual gives the frame back, and a zero residual gives the render."""
     import torch
 
-    from model.diffusion import Diffusion, from_residual, to_residual
+    from model.denoiser.diffusion import Diffusion, from_residual, to_residual
 
     cfg = ModelConfig(**{**RESIDUAL.__dict__, "residual_gain": 8.0})
     diff = Diffusion(cfg)
@@ -86,7 +87,7 @@ def test_a_gained_residual_samples_back_differences_past_the_unit_range():
 def test_a_contact_is_grown_about_its_rendered_centre_by_the_renders_area_ratio():
     """A disc of radius 4 px whose render grows from radius 4 to 6 becomes a disc of radius 6 about the
     same centre; one whose render shrinks to 2 shrinks; a frame whose render shows no contact is unchanged."""
-    from model.force_augment import contact, grown
+    from model.conditioning.force_augment import contact, grown
 
     yy, xx = np.mgrid[0:32, 0:32]
 
@@ -108,9 +109,9 @@ def test_each_frame_is_shown_again_at_four_loads_grown_as_the_render_grows(tmp_p
     import torch
 
     from dataset.torch_dataset import TactileDataset, image_to_tensor
-    from model.force_augment import ForceAugmented, factors, levels_cache
-    from model.force_render import force_physics_cache
-    from model.physics_condition import split_spec
+    from model.conditioning.force_augment import ForceAugmented, factors, levels_cache
+    from model.conditioning.force_render import force_physics_cache
+    from model.conditioning.physics_condition import split_spec
 
     split = _split(tmp_path)
     spec = split_spec(split)
@@ -159,9 +160,9 @@ def test_each_frame_is_shown_again_at_four_loads_grown_as_the_render_grows(tmp_p
 
 
 def test_a_model_trained_with_force_augmentation_records_it_and_generates(tmp_path):
-    from model.build import build
-    from model.inference import TrainedModel
-    from model.trainer import TrainConfig
+    from model.generation.inference import TrainedModel
+    from model.training.build import build
+    from model.training.trainer import TrainConfig
 
     split = _split(tmp_path)
     cfg = ModelConfig(**{**RESIDUAL.__dict__, "image_size": 32, "residual_gain": 4.0, "force_augment": 0.2})

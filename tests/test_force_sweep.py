@@ -5,10 +5,10 @@ import math
 import numpy as np
 import pytest
 
-from model import force_sweep as F
-from model import sweep_measures as M
-from model import sweep_references as R
-from model.sweep_report import reference_table, response_table, verdict
+from model.sweeps import force_sweep as F
+from model.sweeps import sweep_measures as M
+from model.sweeps import sweep_references as R
+from model.sweeps.sweep_report import reference_table, response_table, verdict
 
 SIZE = 64
 MM_PER_PX = 0.1
@@ -349,7 +349,7 @@ def test_values_the_render_could_not_reach_are_left_out_of_every_measure_and_sai
     assert s["render_limited_values"] == pytest.approx([6.25, 8.0]) and s["render_limited_note"] == limit
     assert s["area_exponent"] == pytest.approx(2 / 3, abs=0.08)  # from the three points the render reached
     assert "beyond_values" not in s  # the left-out values are not "past the training maximum" either
-    from model.sweep_report import pose_notes
+    from model.sweeps.sweep_report import pose_notes
 
     assert any("left out of every measure" in line and limit in line for line in pose_notes([s]))
 
@@ -368,7 +368,7 @@ def test_past_the_maximum_compares_with_the_last_value_the_model_was_conditioned
 def test_default_sweep_poses_span_the_field_and_the_loads():
     """Issue 37: the three poses of before sat next to each other in Fz on one half of the field. The
     default eight span at least 60 % of the field's width (and height) and of the part's Fz range."""
-    from model.force_sweep import choose_poses
+    from model.sweeps.force_sweep import choose_poses
 
     rng = np.random.default_rng(0)
     runs = {}

@@ -5,7 +5,8 @@ imports itself through others.
     common → objects → sensor_sim → rig (transport → drivers → sim; core) → protocols
     → acquisition → dataset → model → cli
 
-(protocols sit beside the rig: they import neither it nor anything above.)
+(protocols sit beside the rig: they import neither it nor anything above.) Inside model, its
+sub-packages are layers too (``MODEL_ROOMS``): each imports only those before it.
 """
 
 from __future__ import annotations
@@ -43,6 +44,17 @@ ALLOWED: dict[str, tuple[str, ...]] = {
     "model": ("common", "objects", "sensor_sim", "protocols", "acquisition", "dataset"),
     "cli": PACKAGES,
 }
+# model's sub-packages, bottom to top: each may import what model may, and the sub-packages before it.
+MODEL_ROOMS = (
+    "model.denoiser",  # config, network, diffusion, samplers, checkpoints
+    "model.conditioning",  # the physics channels and their caches
+    "model.generation",  # a trained model loaded and sampled
+    "model.sweeps",  # the force sweep
+    "model.evaluation",  # evaluate: metrics, baselines, report, figures
+    "model.training",  # the trainer, its callbacks, train
+    "model.compare",  # compare: settings over seeds
+)
+ALLOWED.update({room: (*ALLOWED["model"], *MODEL_ROOMS[:i]) for i, room in enumerate(MODEL_ROOMS)})
 FORBIDDEN_BELOW = {  # finer rules inside an allowed package
     "acquisition": ("rig.sim",),  # a hardware run never needs the simulator
     "rig": ("rig.sim",),  # the rig opens what the config names; the simulated rig is handed in
@@ -170,6 +182,21 @@ def test_the_contract_catches_a_wrong_arrow(tmp_path, monkeypatch):
     with pytest.raises(AssertionError, match="protocols.bad .* rig.rig"):
         test_imports_run_down_the_layers("protocols.bad")
     imports.cache_clear()
+
+
+def test_the_contract_catches_a_model_room_importing_one_above_it(tmp_path, monkeypatch):
+    """The checker itself: the denoiser importing the trainer is reported; every sub-package of
+    model is one of MODEL_ROOMS."""
+    fake = tmp_path / "model" / "denoiser" / "bad.py"
+    fake.parent.mkdir(parents=True)
+    fake.write_text("from model.training.trainer import Trainer\n")
+    monkeypatch.setitem(modules(), "model.denoiser.bad", fake)
+    imports.cache_clear()
+    with pytest.raises(AssertionError, match="model.denoiser.bad .* model.training.trainer"):
+        test_imports_run_down_the_layers("model.denoiser.bad")
+    imports.cache_clear()
+    rooms = {p.parent.relative_to(ROOT).as_posix().replace("/", ".") for p in (ROOT / "model").glob("*/__init__.py")}
+    assert rooms == set(MODEL_ROOMS)
 
 
 def test_a_long_module_says_why_it_is_one():

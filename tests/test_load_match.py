@@ -1,5 +1,5 @@
 """The tangential state from a measured load (sensor_sim/load_match.py), and the marker render
-that uses it (model/baseline.py's ObjectRender.render with a wrench)."""
+that uses it (model/conditioning/baseline.py's ObjectRender.render with a wrench)."""
 
 from __future__ import annotations
 
@@ -72,7 +72,7 @@ def test_non_finite_load_is_refused():
 def test_the_marker_render_follows_the_measured_shear():
     """Markers move with Fx: the render under +Fx differs from the unloaded one, its markers (dark
     blobs) shifted towards +x (image columns grow with x), and -Fx about mirrors it."""
-    from model.baseline import ObjectRender
+    from model.conditioning.baseline import ObjectRender
     from sensor_sim.profile import default_profile
 
     render = ObjectRender("sphere10mm", "white_markers", default_profile(), 128, 14 / 128)

@@ -6,8 +6,8 @@ import cv2
 import numpy as np
 import pytest
 
-from model.markers import find_markers, marker_error
-from model.metrics import image_metrics, mae, mse, psnr, ssim
+from model.evaluation.markers import find_markers, marker_error
+from model.evaluation.metrics import image_metrics, mae, mse, psnr, ssim
 
 
 @pytest.fixture
@@ -80,9 +80,9 @@ def test_markers_inside_a_dark_ring_are_found():
 
 
 def test_marker_flow_and_its_figure(tmp_path):
-    from model.evaluate import Evaluation, Row
-    from model.figures import marker_flow_figure
-    from model.markers import marker_flow
+    from model.evaluation.evaluate import Evaluation, Row
+    from model.evaluation.figures import marker_flow_figure
+    from model.evaluation.markers import marker_flow
     from objects.pose import Pose
     from sensor_sim.light import OpticsSpec
     from sensor_sim.scene import Scene
@@ -108,7 +108,7 @@ def test_marker_flow_and_its_figure(tmp_path):
 
 # -- verdicts that follow the intervals (issue 37) ------------------------------------------------
 def _row(setting, mse, mae, ssim, psnr, width=0.1):
-    from model.eval_results import Row
+    from model.evaluation.eval_results import Row
 
     ci = {
         k: (v - width * abs(v), v + width * abs(v))
@@ -118,13 +118,13 @@ def _row(setting, mse, mae, ssim, psnr, width=0.1):
 
 
 def _evaluation(model, baselines, physics=None, simulated=False):
-    from model.eval_results import Evaluation
+    from model.evaluation.eval_results import Evaluation
 
     return Evaluation([model], physics, "", False, simulated=simulated, baselines=baselines)
 
 
 def test_a_model_better_on_mse_and_worse_on_mae_is_called_so_metric_by_metric():
-    from model.evaluation_report import metrics_verdict
+    from model.evaluation.evaluation_report import metrics_verdict
 
     model = _row("ddim:10", mse=2.0, mae=2.09, ssim=0.90, psnr=39.1, width=0.02)
     nearest = _row("nearest training frame", mse=4.0, mae=1.41, ssim=0.90, psnr=41.85, width=0.02)
@@ -136,7 +136,7 @@ def test_a_model_better_on_mse_and_worse_on_mae_is_called_so_metric_by_metric():
 
 
 def test_overlapping_intervals_read_tied_and_the_oracle_is_apart():
-    from model.evaluation_report import metrics_verdict
+    from model.evaluation.evaluation_report import metrics_verdict
 
     model = _row("ddim:10", mse=87.4, mae=5.0, ssim=0.8, psnr=30.0, width=0.1)
     nearest = _row("nearest training frame", mse=89.9, mae=5.2, ssim=0.79, psnr=29.8, width=0.2)
@@ -158,8 +158,8 @@ def _disk_frame(radius_px: float, centre=(32, 32), size=64, gain=80.0, base=None
 
 
 def test_near_contact_metrics_see_the_contact_that_the_whole_frame_dilutes():
-    from model.contact_scores import find_contacts, near_row
-    from model.metrics import image_metrics
+    from model.evaluation.contact_scores import find_contacts, near_row
+    from model.evaluation.metrics import image_metrics
 
     rng = np.random.default_rng(0)
     background = np.full((64, 64, 3), 120, np.uint8)
@@ -181,7 +181,7 @@ def test_near_contact_metrics_see_the_contact_that_the_whole_frame_dilutes():
 
 
 def test_the_light_load_row_reads_a_contact_twice_too_large_as_about_two():
-    from model.contact_scores import find_contacts, light_frames, light_load
+    from model.evaluation.contact_scores import find_contacts, light_frames, light_load
 
     background = np.full((64, 64, 3), 120, np.uint8)
     fz = [0.04, 0.05, 0.06, 0.5, 1.0, 1.5, 2.0, 2.5, 3.0, 3.5, 4.0, 4.5, 5.0, 6.0, 7.0, -0.01]
@@ -198,8 +198,8 @@ def test_the_light_load_row_reads_a_contact_twice_too_large_as_about_two():
 
 
 def test_a_test_part_of_named_runs_says_which_runs_and_never_trained_on():
-    from model.eval_results import Evaluation
-    from model.evaluation_report import part_text
+    from model.evaluation.eval_results import Evaluation
+    from model.evaluation.evaluation_report import part_text
 
     ev = Evaluation([], None, "", False, part="test", test_runs=["/data/runs/central_band.h5"])
     assert part_text(ev) == (

@@ -9,10 +9,10 @@ import math
 import numpy as np
 import pytest
 
-from model.compare import Candidate, Result, summary
-from model.compare_report import verdict, write_compare_report
-from model.config import ModelConfig
-from model.intervals import bootstrap_interval, differs, seed_spread
+from model.compare.compare import Candidate, Result, summary
+from model.compare.compare_report import verdict, write_compare_report
+from model.denoiser.config import ModelConfig
+from model.evaluation.intervals import bootstrap_interval, differs, seed_spread
 
 
 def test_a_candidate_is_a_conditioning_then_model_fields():
@@ -131,7 +131,7 @@ class _Renderer:
 
 
 def test_the_force_decides_the_depth_of_the_physics_render():
-    from model.force_render import force_pose
+    from model.conditioning.force_render import force_pose
 
     at, note = force_pose(_Renderer(), (1.0, 2.0, -0.1, 5.0), 2.0)
     assert at.tolist() == [1.0, 2.0, -1.0, 5.0] and note == ""  # the pose's z is not used
@@ -142,7 +142,7 @@ def test_the_force_decides_the_depth_of_the_physics_render():
 
 
 def test_the_comparison_holds_settings_to_the_same_exponent_as_each_runs_report():
-    from model.compare_report import force_verdict
+    from model.compare.compare_report import force_verdict
 
     entry = {
         "real_exponent_at_poses": 0.51,  # real frames at the sweep's poses at several forces
@@ -169,9 +169,9 @@ def test_compare_steps_makes_each_step_count_a_setting_of_its_own(monkeypatch, t
     each trained for its own steps."""
     import typer
 
-    import model.build
+    import model.training.build
     from cli.compare_cmd import _step_counts
-    from model.compare import train_one
+    from model.compare.compare import train_one
 
     assert _step_counts("400,1200") == [400, 1200] and _step_counts(None) == []
     for bad in ("400,x", "0", "400,400", ""):
@@ -193,7 +193,7 @@ def test_compare_steps_makes_each_step_count_a_setting_of_its_own(monkeypatch, t
         seen.append((cfg.residual_gain, train_cfg.steps, train_cfg.checkpoint_every))
         return Trainer()
 
-    monkeypatch.setattr(model.build, "build", fake_build)
+    monkeypatch.setattr(model.training.build, "build", fake_build)
     for cand in (short, long):
         train_one(cand, 0, ModelConfig(), {"steps": 400, "batch_size": 2}, tmp_path, tmp_path / cand.folder)
     assert seen == [(8.0, 400, 400), (8.0, 1200, 1200)]

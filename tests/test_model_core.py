@@ -3,9 +3,9 @@
 import pytest
 import torch
 
-from model.config import ModelConfig, preset
-from model.diffusion import Diffusion
-from model.network import ContactDenoiser, wrench_plane
+from model.denoiser.config import ModelConfig, preset
+from model.denoiser.diffusion import Diffusion
+from model.denoiser.network import ContactDenoiser, wrench_plane
 
 SMALL = ModelConfig(
     image_size=16, block_out_channels=(16, 32), layers_per_block=1, train_timesteps=100, cond_dropout=0.0
@@ -163,9 +163,9 @@ def make_split_dir(tmp_path, n=24, size=16, kind="rgb", profile=None):
 
 
 def test_resume_continues_with_the_same_losses(tmp_path):
-    from model.build import build
-    from model.checkpoint import CheckpointError
-    from model.trainer import TrainConfig
+    from model.denoiser.checkpoint import CheckpointError
+    from model.training.build import build
+    from model.training.trainer import TrainConfig
 
     split = make_split_dir(tmp_path)
     # validation samples every 3 steps in both runs: sampling must not disturb training's state
@@ -186,8 +186,8 @@ def test_resume_continues_with_the_same_losses(tmp_path):
 
 def trained_run(tmp_path, steps):
     """A split and a tiny run trained on it for ``steps`` steps, saved: (split dir, run dir)."""
-    from model.build import build
-    from model.trainer import TrainConfig
+    from model.training.build import build
+    from model.training.trainer import TrainConfig
 
     split = make_split_dir(tmp_path)
     trainer = build(
@@ -201,8 +201,8 @@ def trained_run(tmp_path, steps):
 def test_generate_from_a_trained_run(tmp_path):
     import numpy as np
 
-    from model.checkpoint import CheckpointError
-    from model.inference import TrainedModel
+    from model.denoiser.checkpoint import CheckpointError
+    from model.generation.inference import TrainedModel
 
     _, run = trained_run(tmp_path, 3)
     model = TrainedModel.load(run)
@@ -223,7 +223,7 @@ def test_generate_from_a_trained_run(tmp_path):
 def test_evaluate_writes_the_report_with_the_physics_render_row(tmp_path):
     import json
 
-    from model.evaluate import evaluate, report
+    from model.evaluation.evaluate import evaluate, report
 
     split, run = trained_run(tmp_path, 2)
     ev = evaluate(run, split, settings=(("ddim", 3), ("ddpm", 4)), limit=3)
@@ -255,7 +255,7 @@ def test_evaluate_writes_the_report_with_the_physics_render_row(tmp_path):
 def test_the_report_states_what_was_evaluated_and_labels_its_examples(tmp_path):
     """Image size, model, conditioning, split and machine at the top; each example row with the
     wrench and pose it was generated for; seconds per network evaluation beside per image."""
-    from model.evaluate import evaluate, report
+    from model.evaluation.evaluate import evaluate, report
 
     split, run = trained_run(tmp_path, 2)
     ev = evaluate(run, split, settings=(("ddim", 4),), limit=3, baseline=False, n_examples=2)
@@ -276,8 +276,8 @@ def test_physics_render_reproduces_a_simulated_frame(tmp_path):
     """On a frame the simulator made, the baseline differs only by the frame's sensor noise."""
     import numpy as np
 
-    from model.baseline import render_frames
-    from model.metrics import image_metrics
+    from model.conditioning.baseline import render_frames
+    from model.evaluation.metrics import image_metrics
     from objects.pose import Pose
     from sensor_sim.light import OpticsSpec
     from sensor_sim.optics import Renderer
@@ -303,7 +303,7 @@ def _one_frame_run(tmp_path, frame, reference, pose):
 def test_generate_over_a_split_writes_frames_and_an_index(tmp_path):
     import csv
 
-    from model.inference import TrainedModel
+    from model.generation.inference import TrainedModel
 
     split, run = trained_run(tmp_path, 2)
     n = TrainedModel.load(run).generate_split(split, "test", tmp_path / "gen", steps=2, batch_size=2)
@@ -373,7 +373,7 @@ def test_loss_targets_and_samplers_agree_for_each_prediction(prediction):
 def test_the_example_model_files_in_docs_load():
     from pathlib import Path
 
-    from model.config_file import load_model_file
+    from model.training.config_file import load_model_file
 
     files = sorted((Path(__file__).parent.parent / "docs" / "examples").glob("*.toml"))
     assert files

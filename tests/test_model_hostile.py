@@ -90,10 +90,10 @@ def test_state_json_that_is_not_json(run, tmp_path):
 
 
 def test_resume_from_a_damaged_optimizer_file_is_named(run, tmp_path):
-    from model.build import build
-    from model.checkpoint import CheckpointError
-    from model.config import ModelConfig
-    from model.trainer import TrainConfig
+    from model.denoiser.checkpoint import CheckpointError
+    from model.denoiser.config import ModelConfig
+    from model.training.build import build
+    from model.training.trainer import TrainConfig
 
     split, trained, _ = run
     copy, ck = _copy(trained, tmp_path)

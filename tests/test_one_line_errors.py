@@ -52,7 +52,7 @@ def test_an_unexpected_error_is_one_line_naming_its_type(tmp_path, monkeypatch, 
         monkeypatch.setattr("dataset.runs.summarize", _boom)
         result = runner.invoke(dataset_app, ["info", str(tmp_path / "run.h5")])
     elif app == "model":
-        monkeypatch.setattr("model.inference.TrainedModel.load", _boom)
+        monkeypatch.setattr("model.generation.inference.TrainedModel.load", _boom)
         args = ["--checkpoint", str(tmp_path), "--object", "sphere10mm", "--wrench", "0,0,1,0,0,0"]
         result = runner.invoke(generate_app, [*args, "--out", str(tmp_path / "x.png"), "--threads", "1"])
     else:

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from acquisition import schema as S
-from model.config import ModelConfig
+from model.denoiser.config import ModelConfig
 from objects.pose import Pose
 from tests.test_model_core import SMALL, make_split_dir
 
@@ -17,8 +17,8 @@ PHYS = ModelConfig(**{**SMALL.__dict__, "conditioning": "physics+plane"})
 
 
 def _trained(tmp_path, cfg=PHYS, steps=2):
-    from model.build import build
-    from model.trainer import TrainConfig
+    from model.training.build import build
+    from model.training.trainer import TrainConfig
 
     tmp_path.mkdir(parents=True, exist_ok=True)
     split = make_split_dir(tmp_path)
@@ -53,7 +53,7 @@ def physics_run(tmp_path_factory):
 def test_physics_model_records_its_conditioning_and_generates(physics_run):
     import torch
 
-    from model.inference import TrainedModel
+    from model.generation.inference import TrainedModel
 
     _, run = physics_run
     meta = json.loads((run / "checkpoint" / "state.json").read_text())
@@ -95,7 +95,7 @@ def test_physics_model_records_its_conditioning_and_generates(physics_run):
 
 
 def test_physics_model_generates_a_split_as_evaluate_does(physics_run, tmp_path):
-    from model.inference import TrainedModel
+    from model.generation.inference import TrainedModel
 
     split, run = physics_run
     # generate_split (what evaluate uses) renders the physics channels of plain Dataset items
@@ -127,8 +127,8 @@ def test_generate_command_takes_a_library_object_at_x_y_z_theta(physics_run, tmp
 def test_checkpoints_without_physics_still_load_and_a_physics_one_needs_its_record(physics_run, tmp_path):
     import shutil
 
-    from model.checkpoint import CheckpointError
-    from model.inference import TrainedModel
+    from model.denoiser.checkpoint import CheckpointError
+    from model.generation.inference import TrainedModel
 
     _, trained = physics_run
     _, run = _trained(tmp_path / "a", cfg=SMALL, steps=1)
@@ -149,10 +149,20 @@ def test_checkpoints_without_physics_still_load_and_a_physics_one_needs_its_reco
         TrainedModel.load(run)
 
 
+def test_a_splits_caches_are_named_in_one_place_and_where_they_always_were(tmp_path):
+    """model/conditioning/cache.py names every cache's file; caches written before it are found again."""
+    from model.conditioning import cache
+
+    assert cache.folder(tmp_path) == tmp_path / "physics"
+    assert cache.pose_renders(tmp_path, "train", 32) == tmp_path / "physics" / "train-32px.npy"
+    assert cache.force_renders(tmp_path, "train", 32) == tmp_path / "physics" / "train-32px-fz.npy"
+    assert cache.force_levels(tmp_path, "train", 32, 0.25) == tmp_path / "physics" / "train-32px-fz-augment-0.25.npy"
+
+
 def test_the_cache_is_the_render_and_is_rebuilt_when_stale(tmp_path):
     from dataset.torch_dataset import TactileDataset, uint8_tensor_to_image
-    from model.baseline import PhysicsRender
-    from model.physics_condition import physics_cache, resize
+    from model.conditioning.baseline import PhysicsRender
+    from model.conditioning.physics_condition import physics_cache, resize
 
     split = make_split_dir(tmp_path)
     lines: list[str] = []
@@ -192,7 +202,7 @@ def test_physics_is_refused_for_an_object_the_simulator_does_not_know(tmp_path):
     from acquisition import attr_checksum
     from cli.model_app import app
     from dataset.split import make_split
-    from model.physics_condition import PhysicsUnavailable, split_spec
+    from model.conditioning.physics_condition import PhysicsUnavailable, split_spec
 
     split = make_split_dir(tmp_path)
     run = json.loads((split / "split.json").read_text())["runs"][0]["path"]
@@ -223,7 +233,7 @@ def test_train_picks_the_sensor_kinds_default_and_keeps_every_choice(tmp_path):
     from typer.testing import CliRunner
 
     from cli.model_app import app
-    from model.config import DEFAULT_CONDITIONING, DEFAULT_TARGET
+    from model.denoiser.config import DEFAULT_CONDITIONING, DEFAULT_TARGET
 
     split = make_split_dir(tmp_path)
     common = ["--data", str(split), "--image-size", "16", "--steps", "1", "--batch-size", "4", "--sample-every", "0"]
@@ -257,7 +267,7 @@ def test_physics_residual_target_denoises_the_difference_from_the_render():
     (nothing to correct) samples the physics render itself; the target needs physics conditioning."""
     import torch
 
-    from model.diffusion import Diffusion, from_residual, to_residual
+    from model.denoiser.diffusion import Diffusion, from_residual, to_residual
 
     with pytest.raises(ValueError, match="physics_residual needs physics conditioning"):
         ModelConfig(**{**SMALL.__dict__, "conditioning": "plane", "target": "physics_residual"})
@@ -291,9 +301,9 @@ def test_a_swept_fz_is_rendered_at_the_depth_that_gives_it(tmp_path):
     """evaluate's force sweep marks items whose Fz it changed: their physics channels are rendered
     at the depth where the simulator's contact gives that Fz, so a harder press is a deeper render."""
     from dataset.torch_dataset import TactileDataset, uint8_tensor_to_image
-    from model.baseline import PhysicsRender
-    from model.inference import add_physics
-    from model.physics_condition import resize, split_spec
+    from model.conditioning.baseline import PhysicsRender
+    from model.conditioning.physics_condition import resize, split_spec
+    from model.generation.inference import add_physics
     from sensor_sim.load_match import depth_for_force
 
     split = make_split_dir(tmp_path, n=24, size=32)

@@ -11,7 +11,7 @@ import pytest
 from typer.testing import CliRunner
 
 from cli.rig_app import app
-from model.baseline import ObjectRender
+from model.conditioning.baseline import ObjectRender
 from objects.indenters import sphere
 from objects.pose import Pose
 from rig.sim.rig_sim import SimulatedRig

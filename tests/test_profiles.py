@@ -10,7 +10,7 @@ from typer.testing import CliRunner
 
 from acquisition import schema as S
 from cli.rig_app import app
-from model.baseline import BaselineUnavailable, PhysicsRender
+from model.conditioning.baseline import BaselineUnavailable, PhysicsRender
 from rig.sim.rig_sim import SimulatedRig
 from sensor_sim.light import LightModel
 from sensor_sim.noise import SensorNoise

@@ -6,9 +6,9 @@ from __future__ import annotations
 import pytest
 import torch
 
-from model.config import ModelConfig
-from model.diffusion import Diffusion, alpha_bar_schedule
-from model.samplers import SAMPLERS, SPACING, sample_ddim, sample_ddpm, sample_dpm, spaced_timesteps
+from model.denoiser.config import ModelConfig
+from model.denoiser.diffusion import Diffusion, alpha_bar_schedule
+from model.denoiser.samplers import SAMPLERS, SPACING, sample_ddim, sample_ddpm, sample_dpm, spaced_timesteps
 
 # diffusers' DPM scheduler trips a numpy 2 deprecation inside itself; not ours to fix
 pytestmark = pytest.mark.filterwarnings("ignore:__array__ implementation:DeprecationWarning")
@@ -52,7 +52,7 @@ def test_timesteps_are_diffusers_grids(steps):
 
 
 def diffusers_loop(name, denoise, x, steps, generator, clip=True):
-    """The loop model/diffusion.py ran before (diffusers' schedulers from its DDPM config)."""
+    """The loop model/denoiser/diffusion.py ran before (diffusers' schedulers from its DDPM config)."""
     from diffusers import DDIMScheduler, DDPMScheduler, DPMSolverMultistepScheduler
 
     base = DDPMScheduler(

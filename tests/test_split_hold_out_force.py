@@ -172,8 +172,8 @@ def test_split_command_prints_the_part_and_a_hand_edited_record_is_refused(runs,
 
 def test_compare_and_evaluation_report_on_the_test_force_part(runs, tmp_path):
     from dataset.split import make_split
-    from model.compare import Candidate, compare, summary
-    from model.compare_report import write_compare_report
+    from model.compare.compare import Candidate, compare, summary
+    from model.compare.compare_report import write_compare_report
 
     make_split(runs, "8:2", tmp_path / "s", hold_out_top="Fz:5")
     results = compare(

@@ -9,7 +9,7 @@ import cv2
 import numpy as np
 import pytest
 
-from model.texture_measure import TextureBand, texture_score
+from model.evaluation.texture_measure import TextureBand, texture_score
 
 SIZE_PX = 160
 MM_PER_PX = 0.05  # 8 mm across
@@ -75,7 +75,7 @@ def test_a_tiny_contact_or_mismatched_shapes_are_refused():
 
 
 def test_rows_over_frames_rank_the_blurred_contact_below_the_real_texture_and_find_the_contact():
-    from model.texture_eval import blurred_contact, contact_mask, texture_rows
+    from model.evaluation.texture_eval import blurred_contact, contact_mask, texture_rows
 
     background = np.full((SIZE_PX, SIZE_PX, 3), 120.0)
     reals = [weave(seed=s) for s in (1, 2, 3)]

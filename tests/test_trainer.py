@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 import torch
 
-from model.config import ModelConfig
-from model.trainer import Callback, TrainConfig, Trainer
+from model.denoiser.config import ModelConfig
+from model.training.trainer import Callback, TrainConfig, Trainer
 from tests.test_model_core import SMALL, make_split_dir
 
 
@@ -80,7 +80,7 @@ class TinyConv(torch.nn.Module):
         self.conv = torch.nn.Conv2d(7, 3, 3, padding=1)
 
     def forward(self, noisy, timesteps, condition, wrench):
-        from model.network import check_inputs, wrench_plane
+        from model.denoiser.network import check_inputs, wrench_plane
 
         check_inputs(noisy, condition, wrench)
         x = torch.cat([noisy, condition, wrench_plane(wrench, noisy.shape[-1])], 1)  # (B, 7, S, S)
@@ -88,9 +88,9 @@ class TinyConv(torch.nn.Module):
 
 
 def test_a_network_from_the_registry_trains_saves_and_generates(tmp_path, monkeypatch):
-    from model import registry
-    from model.build import build
-    from model.inference import TrainedModel
+    from model.denoiser import registry
+    from model.generation.inference import TrainedModel
+    from model.training.build import build
 
     monkeypatch.setitem(registry.NETWORKS, "tinyconv", TinyConv)
     cfg = dataclasses.replace(SMALL, network="tinyconv")
@@ -113,14 +113,14 @@ def test_a_network_from_the_registry_trains_saves_and_generates(tmp_path, monkey
 
 
 def test_an_unknown_network_is_named():
-    from model.registry import build_network
+    from model.denoiser.registry import build_network
 
     with pytest.raises(ValueError, match="network must be one of unet2d, got 'transformer'"):
         build_network(dataclasses.replace(SMALL, network="transformer"))
 
 
 def test_progress_lines_every_fifty_steps_and_at_the_end():
-    from model.callbacks import Progress
+    from model.training.callbacks import Progress
 
     lines: list[str] = []
     trainer = Trainer(

@@ -521,7 +521,7 @@ def test_calibrate_and_view_refuse_a_file_that_is_not_a_run_in_one_line(tmp_path
 def test_model_values_and_poses_are_named(tmp_path):
     """Before: `[model] not all arguments converted during string formatting` for image_size "many",
     and `generate --pose 1e30` answered `Fz 1 N is beyond …`."""
-    from model.config import ModelConfig
+    from model.denoiser.config import ModelConfig
 
     with pytest.raises(ValueError, match="image_size must be a whole number > 0, got 'many'"):
         ModelConfig(image_size="many")

@@ -32,7 +32,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[3]))
 
-from model.sweep_measures import change_strength, contact_threshold, frames_exponent  # noqa: E402
+from model.sweeps.sweep_measures import change_strength, contact_threshold, frames_exponent  # noqa: E402
 
 SIZES = (32, 64, 128)
 

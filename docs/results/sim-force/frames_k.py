@@ -2,7 +2,7 @@
 
 Every frame of each run at the contact point's x, y (within 0.05 mm) and θ (within 0.2°) — the
 press phases and the ends of the returns and untwists, so the depth (and Fz) varies and nothing
-else does much — measured as the force sweep measures (model/sweep_measures.measure_contact, the
+else does much — measured as the force sweep measures (model/sweeps/sweep_measures.measure_contact, the
 same size, blur and threshold as the evaluation's report states), fitted in log–log over the frames
 whose Fz lies in the training range (the split's 2nd–98th percentile). Also over all frames of the
 part at their own poses, as `compare` reports it.
@@ -16,8 +16,8 @@ from pathlib import Path
 
 import numpy as np
 
-from model import sweep_measures as M
-from model.sweep_references import RunData
+from model.sweeps import sweep_measures as M
+from model.sweeps.sweep_references import RunData
 
 split, size, blur, threshold = Path(sys.argv[1]), int(sys.argv[2]), float(sys.argv[3]), float(sys.argv[4])
 meta = json.loads((split / "split.json").read_text())

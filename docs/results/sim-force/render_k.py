@@ -13,10 +13,10 @@ from pathlib import Path
 
 import numpy as np
 
-from model import sweep_measures as M
-from model.force_render import force_pose
-from model.physics_condition import resize, split_spec
-from model.sweep_references import RunData
+from model.conditioning.force_render import force_pose
+from model.conditioning.physics_condition import resize, split_spec
+from model.sweeps import sweep_measures as M
+from model.sweeps.sweep_references import RunData
 
 split, size, blur, threshold = Path(sys.argv[1]), int(sys.argv[2]), float(sys.argv[3]), float(sys.argv[4])
 meta = json.loads((split / "split.json").read_text())

@@ -5,7 +5,7 @@ own place, with Fz swept over the training range, for three images that need no 
 - ``frame + render change``: the real frame plus the render's change from its own Fz — a model whose
   difference from the render does not depend on the load (a residual that ignores Fz);
 - ``frame grown``: the real frame's contact scaled about the rendered contact by the square root of the
-  rendered area ratio — what ``force_augment`` trains on (model/force_augment.py).
+  rendered area ratio — what ``force_augment`` trains on (model/conditioning/force_augment.py).
 
     python docs/results/real-gelsight/gain/ideal_k.py SPLIT RUN THRESHOLD [--low 1.20 --high 1.76]
 
@@ -23,10 +23,10 @@ import numpy as np
 
 from acquisition import schema as S
 from acquisition.run_reader import RunReader
-from model.force_augment import grown
-from model.force_render import render_at_force
-from model.physics_condition import resize, split_spec
-from model.sweep_measures import measure_contact, power_exponent
+from model.conditioning.force_augment import grown
+from model.conditioning.force_render import render_at_force
+from model.conditioning.physics_condition import resize, split_spec
+from model.sweeps.sweep_measures import measure_contact, power_exponent
 
 KINDS = ("render", "frame + render change", "frame grown")
 

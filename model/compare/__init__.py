@@ -1,0 +1,1 @@
+"""Settings compared over seeds, each trained and evaluated alike, and their report (the ``compare`` command's job)."""

@@ -1,0 +1,1 @@
+"""The denoiser: its config and presets, the network and its registry, diffusion, samplers, checkpoints, threads."""
