@@ -1,3 +1,6 @@
+import fcntl
+import os
+
 import pytest
 
 from common.blas_threads import one_blas_thread
@@ -7,6 +10,41 @@ from rig.sim.link import SimServer
 from rig.sim.world import SimWorld
 
 one_blas_thread()  # as every command does (cli/__init__.py): the simulators in this process run on threads
+
+
+# -- tests that run alone -------------------------------------------------------------------------
+# The suite runs on several processes (pytest-xdist, `-n` in pyproject.toml). A test marked
+# `realtime` asserts what happens at a moment of real time (a signal 50 ms into a command, a stream
+# that must fall silent within 0.2 s), so it runs with no other test running: every other test holds
+# a shared lock on a file of this run while it runs (set-up and teardown included), a realtime test
+# an exclusive one; whoever waits for the exclusive lock holds the turnstile, so that no new test
+# starts meanwhile. Without xdist nothing is locked.
+
+
+def _run_lock_paths(config) -> tuple[str, str] | None:
+    if not os.environ.get("PYTEST_XDIST_WORKER"):
+        return None
+    root = config._tmp_path_factory.getbasetemp().parent  # shared by the run's workers
+    return str(root / "realtime.turnstile"), str(root / "realtime.lock")
+
+
+@pytest.hookimpl(hookwrapper=True, tryfirst=True)  # outside pytest-timeout's: waiting is not the test's time
+def pytest_runtest_protocol(item, nextitem):
+    paths = _run_lock_paths(item.config)
+    if paths is None:
+        yield
+        return
+    alone = item.get_closest_marker("realtime") is not None
+    with open(paths[0], "a") as turnstile, open(paths[1], "a") as lock:
+        fcntl.flock(turnstile, fcntl.LOCK_EX)
+        fcntl.flock(lock, fcntl.LOCK_EX if alone else fcntl.LOCK_SH)
+        if not alone:
+            fcntl.flock(turnstile, fcntl.LOCK_UN)
+        try:
+            yield
+        finally:
+            fcntl.flock(lock, fcntl.LOCK_UN)
+            fcntl.flock(turnstile, fcntl.LOCK_UN)
 
 
 @pytest.fixture(autouse=True)

@@ -143,6 +143,7 @@ def test_exception_reply_is_a_rejection_naming_the_device(serve):
 # -- finding 9: EINTR during write and flush ------------------------------------------
 
 
+@pytest.mark.realtime  # a real-time reader on the other side / a stream that must stop within 0.2 s
 def test_write_and_flush_complete_while_signals_arrive():
     import pty
     import tty
