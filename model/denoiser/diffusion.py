@@ -129,13 +129,19 @@ class Diffusion:
         sampler: str = "ddim",
         guidance: float = 1.0,
         generator: torch.Generator | None = None,
+        same_noise: bool = False,
     ) -> torch.Tensor:
         """Tactile images in [−1, 1], (B, 3, S, S), for a batch of conditions, from noise drawn
-        with ``generator`` (then the sampler's own noise, from the same stream)."""
+        with ``generator`` (then the sampler's own noise, from the same stream). ``same_noise``: every
+        image of the batch starts from the one initial noise a batch of one would draw (what generating
+        them one at a time from the same seed gives, with a sampler that draws no noise of its own)."""
         if sampler not in SAMPLERS:
             raise ValueError(f"sampler must be one of {', '.join(SAMPLERS)}, got {sampler!r}")
         timesteps = spaced_timesteps(self.cfg.train_timesteps, steps, SPACING[sampler])
-        x = torch.randn((condition.shape[0], 3, *condition.shape[2:]), device=condition.device, generator=generator)
+        first = 1 if same_noise else condition.shape[0]
+        x = torch.randn((first, 3, *condition.shape[2:]), device=condition.device, generator=generator)
+        if same_noise:
+            x = x.repeat(condition.shape[0], 1, 1, 1)
         denoise = self.denoiser(net, condition, wrench, guidance=guidance)
         span = self.cfg.residual_gain if self.cfg.residual else 1.0  # the target's range: ±gain for a residual
         kw = {"clip": span} if sampler in CLIPPED else {}

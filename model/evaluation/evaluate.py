@@ -218,13 +218,17 @@ def evaluate_part(
         return loaded[r]
 
     blur = max(0.5, model.cfg.image_size / 64) * (2.5 if markers else 1.0)
-    _contact_scores(ev, items, real, by_row, run, blur)
-    if sweep is not None:
-        from model.sweeps.evaluate_sweep import force_sweep_part
+    try:
+        _contact_scores(ev, items, real, by_row, run, blur)
+        if sweep is not None:
+            from model.sweeps.evaluate_sweep import force_sweep_part
 
-        force_sweep_part(ev, model, split_dir, data, items, sweep, seed, markers, profile, log, clock, run, blur)
-    else:
-        ev.sweep_note = "not asked for (--no-force-sweep)"
+            force_sweep_part(ev, model, split_dir, data, items, sweep, seed, markers, profile, log, clock, run, blur)
+        else:
+            ev.sweep_note = "not asked for (--no-force-sweep)"
+    finally:
+        for opened in loaded.values():  # each run file was opened (and verified) once and kept open for its frames
+            opened.close()
     return ev
 
 

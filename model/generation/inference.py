@@ -65,9 +65,12 @@ def generate_items(
     guidance: float = 1.0,
     batch_size: int = 64,
     physics: PhysicsSpec | None = None,
+    same_noise: bool = False,
 ):
     """Generated frames (BGR uint8), in order, for Dataset items (their condition and wrench),
-    ``batch_size`` at a time from one noise stream seeded with ``seed``. A physics-conditioned
+    ``batch_size`` at a time from one noise stream seeded with ``seed``; ``same_noise``: every item
+    from the one initial noise the first item alone would get (a deterministic sampler: DDIM, DPM), as
+    generating each alone from ``seed`` does, in one batch (``Diffusion.sample``). A physics-conditioned
     network gets each item's physics render: the item's own, else rendered through ``physics``
     (the model's PhysicsSpec, ``add_physics``); a model whose physics channels sit at the depth Fz
     implies (``physics_depth = "force"``) gets every render there."""
@@ -84,7 +87,11 @@ def generate_items(
             add_physics(chunk, cfg.image_size, physics)
         cond = scale_images(torch.stack([condition_of(it) for it in chunk]).to(device))
         wrench = torch.stack([it["wrench"] for it in chunk]).to(device)
-        out = diffusion.sample(net, cond, wrench, steps=steps, sampler=sampler, guidance=guidance, generator=g)
+        if same_noise:  # each batch from the seed's first draw, as each item alone would be
+            g = torch.Generator(device=device).manual_seed(seed)
+        out = diffusion.sample(
+            net, cond, wrench, steps=steps, sampler=sampler, guidance=guidance, generator=g, same_noise=same_noise
+        )
         yield from (tensor_to_image(x) for x in out)
 
 

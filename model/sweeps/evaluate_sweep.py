@@ -138,7 +138,7 @@ def _sweep_frames(model: TrainedModel, base: dict, recorded: np.ndarray, wrenche
 
     from dataset.condition import normalise_wrench
 
-    out, notes = [], []
+    items = []
     for w in wrenches:
         it = dict(base)
         norm = normalise_wrench(w, model.wrench_mean, model.wrench_std).astype(np.float32)
@@ -147,9 +147,16 @@ def _sweep_frames(model: TrainedModel, base: dict, recorded: np.ndarray, wrenche
             it.pop("physics", None)
             it["wrench_raw"] = np.asarray(w, dtype=float)
             it["depth_from_fz"] = bool(w[2] != recorded[2])
-        out += list(model.generate_items([it], steps=opts.steps, sampler=opts.sampler, seed=seed))
-        notes.append(str(it.get("physics_note") or ""))
-    return out, notes
+        items.append(it)
+    kw = {"steps": opts.steps, "sampler": opts.sampler, "seed": seed}
+    if opts.sampler in DETERMINISTIC:  # all the pose's points in one batch, each from the seed's initial noise
+        out = list(model.generate_items(items, same_noise=True, batch_size=max(1, len(items)), **kw))
+    else:  # a sampler drawing noise at every step: one at a time, so every point draws the same
+        out = [img for it in items for img in model.generate_items([it], **kw)]
+    return out, [str(it.get("physics_note") or "") for it in items]
+
+
+DETERMINISTIC = frozenset({"ddim", "dpm"})  # samplers that draw no noise after the initial one (eta 0 DDIM)
 
 
 def _train_percentiles(split_dir, data: TactileDataset, qs) -> dict:

@@ -18,7 +18,7 @@ and a real frame of one contact can differ in area by several times on a real se
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Callable
 
 import cv2
@@ -100,7 +100,10 @@ def depth_for_force(fz: np.ndarray, z: np.ndarray, force: float, *, bins: int = 
 
 @dataclass
 class RunData:
-    """What the sweep reads of one run file, at the evaluated size."""
+    """What the sweep reads of one run file, at the evaluated size. The file is opened (and verified,
+    every frame: acquisition/run_reader.py) once, by ``load``, and kept open for ``frame``: each frame read
+    is still checked by HDF5 as it is read. Opening it again for each frame cost 0.3–0.6 s a frame (the
+    verification), most of `evaluate`'s time (docs/benchmarks.md, "The main job"). ``close`` closes it."""
 
     path: str
     wrench: np.ndarray  # (n, 6) N, N·mm
@@ -108,25 +111,36 @@ class RunData:
     no_contact: np.ndarray  # the run's reference frame, resized
     mm_per_px: float  # at the evaluated size
     size: int
+    reader: RunReader | None = field(default=None, repr=False, compare=False)  # open for ``frame``; None: not yet
 
     @classmethod
     def load(cls, path: str, size: int) -> "RunData":
-        with RunReader.open(path) as f:
+        f = RunReader.open(path)
+        try:
             wrench, pose = f.rows[S.WRENCH], f.rows[S.POSE_MEASURED]
             ref = f.image(S.REFERENCE_FRAME)
             mm_per_px = f.number(S.ATTR_MM_PER_PX)
-        if not (math.isfinite(mm_per_px) and mm_per_px > 0):
-            raise ValueError(f"{path}: mm_per_px {mm_per_px} is not a finite number > 0: no contact area in mm²")
+            if not (math.isfinite(mm_per_px) and mm_per_px > 0):
+                raise ValueError(f"{path}: mm_per_px {mm_per_px} is not a finite number > 0: no contact area in mm²")
+        except BaseException:
+            f.close()
+            raise
         frame_px = ref.shape[1]
-        return cls(path, wrench, pose, resize(ref, size), mm_per_px * frame_px / size, size)
+        return cls(path, wrench, pose, resize(ref, size), mm_per_px * frame_px / size, size, f)
 
     @property
     def name(self) -> str:
         return self.path.rsplit("/", 1)[-1]
 
     def frame(self, i: int) -> np.ndarray:
-        with RunReader.open(self.path) as f:
-            return resize(f.frame(i), self.size)
+        if self.reader is None:
+            self.reader = RunReader.open(self.path)
+        return resize(self.reader.frame(i), self.size)
+
+    def close(self) -> None:
+        if self.reader is not None:
+            self.reader.close()
+            self.reader = None
 
 
 def resize(img: np.ndarray, size: int) -> np.ndarray:
