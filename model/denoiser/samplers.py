@@ -123,6 +123,7 @@ def sample_dpm(
 
 SAMPLERS: dict[str, Callable[..., torch.Tensor]] = {"ddim": sample_ddim, "ddpm": sample_ddpm, "dpm": sample_dpm}
 CLIPPED = frozenset({"ddim", "ddpm"})  # the samplers that clip x̂₀ to the data's range (their ``clip``)
+DETERMINISTIC = frozenset({"ddim", "dpm"})  # the samplers that draw no noise after the initial one (DDIM at η 0)
 # Where each sampler's steps fall: diffusers' defaults for these schedulers, which made the
 # docs' numbers. "leading": 0, T/n, 2T/n, ... (ends at t = 0); "linspace": T−1 down to T/n.
 SPACING = {"ddim": "leading", "ddpm": "leading", "dpm": "linspace"}

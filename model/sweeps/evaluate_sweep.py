@@ -1,8 +1,9 @@
 """The force-response check of one evaluated part (model/sweeps/force_sweep.py does the sweeping and
 measuring): the swept ranges from the training part's wrench percentiles, poses spread over the part,
-each pose's frames generated one at a time from the same noise, the physics render as reference where
-no real frame matches, and the real frames' own exponent across the part. Kept apart from
-model/evaluation/evaluate.py, which calls ``force_sweep_part`` when a sweep is asked for.
+each pose's frames generated from the same initial noise (in one batch for a deterministic sampler),
+the physics render as reference where no real frame matches, and the real frames' own exponent
+across the part. Kept apart from model/evaluation/evaluate.py, which calls ``force_sweep_part``
+when a sweep is asked for.
 """
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ import numpy as np
 from acquisition import schema as S
 from acquisition.run_reader import RunReader
 from dataset.torch_dataset import TactileDataset, uint8_tensor_to_image
+from model.denoiser.samplers import DETERMINISTIC
 from model.generation.inference import TrainedModel
 
 
@@ -130,10 +132,11 @@ def _frames_exponent(split_dir, runs: list[int], run, threshold: float, blur: fl
 
 
 def _sweep_frames(model: TrainedModel, base: dict, recorded: np.ndarray, wrenches: np.ndarray, opts, seed):
-    """(frames, notes) of one pose's sweep, one at a time from the same seed (every point starts from the
-    same noise); a physics model's channels rendered under each swept wrench: for Fz at the depth where
-    the simulator's contact gives it, as `generate` renders a pose given without z. A note per frame
-    says why its channels are not at that Fz (past what the gel can give: rendered at its limit), ""."""
+    """(frames, notes) of one pose's sweep, every point from the seed's initial noise (one batch for a
+    deterministic sampler, else one at a time); a physics model's channels rendered under each swept
+    wrench: for Fz at the depth where the simulator's contact gives it, as `generate` renders a pose
+    given without z. A note per frame says why its channels are not at that Fz (past what the gel can
+    give: rendered at its limit), ""."""
     import torch
 
     from dataset.condition import normalise_wrench
@@ -154,9 +157,6 @@ def _sweep_frames(model: TrainedModel, base: dict, recorded: np.ndarray, wrenche
     else:  # a sampler drawing noise at every step: one at a time, so every point draws the same
         out = [img for it in items for img in model.generate_items([it], **kw)]
     return out, [str(it.get("physics_note") or "") for it in items]
-
-
-DETERMINISTIC = frozenset({"ddim", "dpm"})  # samplers that draw no noise after the initial one (eta 0 DDIM)
 
 
 def _train_percentiles(split_dir, data: TactileDataset, qs) -> dict:
