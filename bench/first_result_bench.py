@@ -2,6 +2,8 @@
 
     nice -n 10 .venv/bin/python bench/first_result_bench.py [--runs A.h5 B.h5] [--work DIR]
         [--eval-frames 150] [--sampler ddim:10] [--threads 1] [--only NAME,NAME] [--resume]
+    .venv/bin/python bench/first_result_bench.py --main-job-vs OLD_TREE [--rounds 2] [--work DIR]
+        (the main job as typed, this checkout against another, in turn: bench/main_job_side_by_side.py)
 
 One split (8:2 by frame, seed 0, as the main job makes) of the main job's two objects; for
 each candidate (image size, batch, learning rate, model widths) one training run, evaluated
@@ -73,7 +75,21 @@ def main() -> None:
         help="instead: ROUNDS of training and sampling bursts at 1 then 2 threads (model/denoiser/threads.py's rule)",
     )
     ap.add_argument("--busy", action="store_true", help="with --measure-threads: keep one core busy meanwhile")
+    ap.add_argument(
+        "--main-job-vs",
+        type=Path,
+        metavar="OLD_TREE",
+        help="instead: `bash scripts/main_job.sh` of this checkout and of OLD_TREE in turn",
+    )
+    ap.add_argument("--rounds", type=int, default=2, help="with --main-job-vs: runs of each tree (default 2)")
     args = ap.parse_args()
+    if args.main_job_vs is not None:
+        from main_job_side_by_side import side_by_side
+
+        if args.rounds < 1:
+            ap.error("--rounds must be at least 1")
+        side_by_side(args.main_job_vs, Path(args.work), args.rounds)
+        return
     if args.measure_threads:
         measure_threads(args.runs, Path(args.work), args.measure_threads, args.busy)
         return

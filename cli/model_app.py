@@ -107,7 +107,11 @@ def train(
         Optional[int], typer.Option(help="Seed of the weights, the data order and the noise (default 0).")
     ] = None,
     mixed_precision: Annotated[
-        Optional[str], typer.Option(help="auto (bf16/fp16 on CUDA, none on CPU), no, fp16 or bf16 (default auto).")
+        Optional[str],
+        typer.Option(
+            help="auto (CUDA: bf16 where supported, else fp16; CPU: bf16 where the CPU has it natively, else "
+            "none), no, fp16 or bf16 (default auto)."
+        ),
     ] = None,
     resume: Annotated[bool, typer.Option(help="Continue from OUT/checkpoint exactly where it stopped.")] = False,
     device: Annotated[

@@ -196,9 +196,9 @@ def test_resume_accepts_the_same_settings_with_other_comments(quick, tmp_path):
     assert result.status == "complete" and result.frames == Plan.of(quick).frame_count
 
 
-def start_run(tmp_path, extra=()):
+def start_run(tmp_path, extra=(), speed_mm_s=0.02):
     proto = tmp_path / "slow.toml"
-    proto.write_text(QUICK.replace("speed_mm_s = 0.1", "speed_mm_s = 0.02"))
+    proto.write_text(QUICK.replace("speed_mm_s = 0.1", f"speed_mm_s = {speed_mm_s}"))
     out = tmp_path / "run.h5"
     rig_bin = str(Path(sys.executable).parent / "rig")
     proc = subprocess.Popen(
@@ -258,7 +258,9 @@ def test_kill_9_then_resume(tmp_path):
 
 @pytest.mark.slow
 def test_sigterm_stops_records_and_closes(tmp_path):
-    proc, _, out, _ = start_run(tmp_path)
+    # a run four times as long: on a loaded machine the simulated run must not end before the signal
+    # lands (the signal stops it after a few frames either way)
+    proc, _, out, _ = start_run(tmp_path, speed_mm_s=0.005)
     try:
         assert wait_for_frames(proc, out, 4) >= 4
         proc.send_signal(signal.SIGTERM)

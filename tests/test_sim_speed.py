@@ -322,6 +322,7 @@ def test_tangential_displacement_through_buffers_is_the_plain_calls_bit_for_bit(
             np.testing.assert_array_equal(uy, ey)
 
 
+@pytest.mark.realtime  # the threaded half serves on real time: load ages a gauge sample past the run's limit
 def test_inline_and_threaded_serving_write_the_same_run_file(tmp_path, monkeypatch):
     """A short protocol on the simulated rig, served inline (drivers serve their own
     requests, take their own stream, render their own frames) and through the simulators'

@@ -137,6 +137,7 @@ def describe(model_cfg, trainer) -> str:
             else "frames"
         )
         + f"; device {trainer.device}"
+        + (f", {trainer.acc.mixed_precision} arithmetic" if trainer.acc.mixed_precision != "no" else "")
         + (f" x {trainer.acc.num_processes} processes" if trainer.acc.num_processes > 1 else "")
     )
 
