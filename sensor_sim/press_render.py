@@ -89,6 +89,9 @@ class PressRender:
         tangential state that carries its Fx, Fy and Mz."""
         from sensor_sim.load_match import contact_at_load
 
+        finite_pose(pose)
+        if wrench is not None:
+            finite_values("wrench (Fx, Fy, Fz N, Mx, My, Mz N·mm)", wrench, 6)
         self.contact.reset()
         needs = self.renderer.needs() if fields is None else frozenset(fields)
         if wrench is None or "uxy" not in needs:
@@ -109,6 +112,7 @@ class PressRender:
         simulator's own force-depth relation; ValueError for a force it cannot give)."""
         from sensor_sim.load_match import depth_for_force
 
+        finite_values("x_mm, y_mm, theta_deg, fz_N", (x_mm, y_mm, theta_deg, fz_N), 4)
         depth = depth_for_force(self.contact.solver, x_mm, y_mm, theta_deg, fz_N)
         return np.array([x_mm, y_mm, -depth, theta_deg])
 
@@ -116,3 +120,19 @@ class PressRender:
 def render_press(profile, obj: Indenter | str, pose: Pose, *, wrench=None, kind: str = "rgb", noise=True, seed=0):
     """The frame (BGR uint8, the profile's size) of ``obj`` at ``pose`` through ``profile``."""
     return PressRender(profile, obj, kind, noise=noise, seed=seed).render(pose, wrench)
+
+
+def finite_pose(pose: Pose) -> None:
+    """ValueError in one line unless the pose's four numbers are finite."""
+    finite_values("pose (x_mm, y_mm, z_mm, theta_deg)", (pose.x_mm, pose.y_mm, pose.z_mm, pose.theta_deg), 4)
+
+
+def finite_values(name: str, values, count: int) -> None:
+    """ValueError in one line naming ``name`` unless ``values`` are ``count`` finite numbers."""
+    try:
+        arr = np.asarray(values, dtype=float).reshape(-1)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name}: expected {count} numbers, got {values!r}") from None
+    if arr.size != count or not np.isfinite(arr).all():
+        shown = ", ".join(f"{v:g}" for v in arr)
+        raise ValueError(f"{name}: expected {count} finite numbers, got ({shown})")

@@ -135,3 +135,23 @@ def test_an_object_smaller_than_two_cells_is_refused_or_given_a_finer_grid():
         rig_contact(sphere(0.001))
     shallow = TactileContact(sphere(10.0), geometry=SensorGeometry(cells=96)).solve(Pose(0.0, 0.0, -1e-4, 0.0))
     assert shallow.wrench[2] == 0 and shallow.sub_cell  # narrower than a cell: said, not silent
+
+
+@pytest.mark.parametrize(
+    "call, message",
+    [
+        (lambda r: r.render(Pose(float("nan"), 0.0, -0.5, 0.0)), r"pose \(x_mm, y_mm, z_mm, theta_deg\): .*nan"),
+        (lambda r: r.render(Pose(0.0, 0.0, float("-inf"), 0.0)), r"pose .*-inf"),
+        (lambda r: r.sink_mm(Pose(0.0, 0.0, -0.5, float("inf"))), r"pose .*inf"),
+        (lambda r: r.render(Pose(0.0, 0.0, -0.5, 0.0), wrench=[0, 0, float("nan"), 0, 0, 0]), r"wrench .*nan"),
+        (lambda r: r.render(Pose(0.0, 0.0, -0.5, 0.0), wrench=[0, 0, 1]), r"wrench .*expected 6 finite numbers"),
+        (lambda r: r.pose_at_force(0.0, 0.0, 0.0, float("nan")), r"fz_N: expected 4 finite numbers"),
+    ],
+)
+def test_the_render_call_refuses_a_pose_or_wrench_that_is_not_finite_in_one_line(call, message):
+    """A NaN or infinite number reaching the library call is named in one line (it used to fail deep in the
+    contact cache with "cannot convert float NaN to integer")."""
+    render = PressRender(default_profile(), "sphere10mm", "rgb")
+    with pytest.raises(ValueError, match=message) as err:
+        call(render)
+    assert "\n" not in str(err.value)
