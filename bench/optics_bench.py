@@ -1,97 +1,96 @@
-"""The simulated sensor against real frames: calibrate on a few presses, score every other press.
+"""The simulated sensor against real frames: calibrate on a few presses, score every other press
+where a user rendering a new pose would put it (frame-blind, the headline) and where its own frame
+says it is (located).
 
     .venv/bin/python bench/optics_bench.py [--data DIR] [--sheets docs/img] [--quick]
 
 For each real sensor under DIR (default: the real frames beside the checkout: ``gelsight_mini``
-and ``gelsight``), calibrate on k = 3 and k = 5 presses (``fit_optics``: the frames' own
-resolution, the default 3 mm gel, the publisher's 0.0295 mm/px, a 4 mm ball), chosen
+and ``gelsight``), calibrate on k presses (``fit_optics``: the frames' own resolution, the
+default 3 mm gel, the publisher's 0.0295 mm/px, a 4 mm ball), chosen
 
 - spread: over the whole field (the press nearest the centre, then each next the farthest from
-  those chosen);
+  those chosen), k = 3 and 5;
 - one quadrant: in one quadrant of the frame only (each quadrant with k presses in turn; the
-  same farthest-point choice inside it),
+  same farthest-point choice inside it), k = 3 and 5;
+- random spread triple #n (the original GelSight): k = 3 presses drawn from all of them
+  (``numpy.random.default_rng(0)``), kept only when they pass the calibrator's own spread rule
+  (``_Fitter.spread``: three or more presses whose published centres span at least MIN_SPAN = 40 %
+  of the frame's width or of its height), five of them (one with --quick),
 
-and score every press the calibration did not see: found in its own frame and refined under the
-fitted light (what a rig knows from its pose; ``locate_press``), rendered through
-``PressRender`` (the simulated rig's contact solver and renderer) without noise, and compared
-with the real frame: MAE (0–255, all channels) over the whole frame and within 1.5 published
-touch radii of the published centre ("near"), beside the background-only frame's. Per row: the
-mean near MAE over the held-out presses and its ratio to the background's, the worst press's
-ratio, the whole-frame MAE against the background's (and on how many presses it is below), the
-peak colour change near the contact (99th percentile, channels summed: the rim's contrast) of
-the render against the real frame's, the MAE within 0.4 found contact radii of its centre
-("centre": where a sector seam or a bright spot of the light tables would show), and the
-calibration's time. Goals (issue 26): spread
-≤ 20 % near the contact, one quadrant ≤ 35 %, whole frame below the background on every press.
+and render every press the calibration did not see through ``PressRender`` (the simulated rig's
+contact solver and renderer) without noise, twice:
+
+- frame-blind (the headline): at the published centre (``touch_center_x/y_px`` through
+  ``pose_of_pixel``) and the depth at which the solver's own contact for the 4 mm ball has the
+  published touch radius (the calibrator's bisection on the solver's contact radius,
+  sqrt(contact area / π); ~15 solves once per press, independent of the light). Nothing of the press's frame
+  is used. The GelSight Mini's published radii are ~1.5× the visible contact (data README): its
+  blind depth is then deeper than the real press, and the blind rows carry that (printed below the
+  table, with the published radii beyond the widest contact the ball can make, placed at the depth
+  limit);
+- located: found in its own frame and refined under the fitted light (what a rig knows from its
+  pose; ``locate_press``), as before.
+
+Each is compared with the real frame (MAE, 0–255, all channels). Per row and placement: "near",
+the mean MAE within 1.5 published touch radii of the published centre over the held-out presses
+against the background-only frame's mean there; the worst press's ratio; on how many presses
+the whole-frame MAE is below the background's; "centre", the mean MAE within 0.4 contact radii of
+the placed contact's centre (blind: the published centre and radius; located: the found ones)
+against the background-only frame's mean in the same discs (where a sector seam or a bright spot
+of the light tables would show); "red change", inside the published contact disc the mean change
+of the red channel from the background, real and rendered: the standard deviation across the
+held-out presses, render / real (their ratio), and their correlation (three presses or more).
+Goals (issue 40), printed under the table with which each row meets: near the contact, spread
+five ≤ 15 %, every spread triple ≤ 22 %, one quadrant ≤ 25 %; centre ≤ 25 %; the whole frame
+below the background on every press; the render's red-change std within 25 % of the real's.
 
 The GelSight Mini's five presses are all near the frame's centre: "spread" and "one quadrant"
-are then the same presses, and with k = 5 none is left to score, so its k = 5 row is leave-one-out
-(k = 4, each press scored by the other four). Its published radii are ~1.5× the visible contact
-(data README): "near" is wider there, as in the rows before this bench.
+are then the same presses (its rows answer the one-quadrant goal), and with k = 5 none is left to
+score, so its k = 5 row is leave-one-out (k = 4, each press scored by the other four; one press:
+no std). Its published radii are ~1.5× the visible contact, so "near" is wider there too.
 
-Also printed: the contact finder against the published centres (after refinement, held-out
-presses of the spread k = 5 calibration), and side-by-side sheets (real | render | difference)
-of centre, edge and corner presses written to ``--sheets`` (the Mini has only centre presses).
+Also printed: the contact finder against the published centres (located, held-out presses of the
+spread k = 5 calibration), and side-by-side sheets (real | blind render | difference) of centre,
+edge and corner presses written to ``--sheets`` (the Mini has only centre presses; the circle is
+the published contact).
 """
 
 from __future__ import annotations
 
 import argparse
-import csv
 import itertools
+import os
 import time
-from dataclasses import dataclass
 from pathlib import Path
 
 import cv2
 import numpy as np
+from optics_scoring import (
+    BALL_RADIUS_MM,
+    CENTRE_GOAL,
+    MM_PER_PX,
+    NEAR_GOALS,
+    RED_STD_GOAL,
+    Blind,
+    PressScore,
+    Sensor,
+    goals,
+    load,
+    near_goal,
+    score_held_out,
+    summarise,
+)
 
 from common.machine import describe
-from objects.indenters import sphere
-from sensor_sim.calibration import Press, fit_optics, locate_press, provisional_profile
+from sensor_sim.calibration import Press, fit_optics
 from sensor_sim.calibration_report import sheet_header, sheet_row
 from sensor_sim.elastomer import Elastomer
-from sensor_sim.press_render import PressRender
 
-MM_PER_PX = 0.0295  # as given by the data's publisher, approximate
-BALL_RADIUS_MM = 2.0  # Taxim's calibration ball (~4 mm diameter)
-NEAR_RADII = 1.5
 SENSORS = ("gelsight_mini", "gelsight")
 QUADRANTS = ("top-left", "top-right", "bottom-left", "bottom-right")
-CENTRE_RADII = 0.4  # "centre": within this share of the found contact radius (a seam or bright spot shows here)
 SPREAD_OFF = 0.15  # a press this share of the frame or more from its centre is off-centre (sheets: edge, corner)
-
-
-@dataclass
-class Sensor:
-    name: str
-    background: np.ndarray
-    images: list[np.ndarray]
-    published: list[tuple[float, float, float]]  # centre x, y, touch radius (px)
-    files: list[str]
-
-
-@dataclass
-class Score:
-    file: str
-    near: float
-    near_bg: float
-    whole: float
-    whole_bg: float
-    found: tuple[float, float, float]  # centre x, y, radius (px) after refinement
-    peak: float  # the rendered press's peak colour change near the contact (99th percentile, summed over channels)
-    peak_real: float  # the real frame's
-    centre: float  # MAE within CENTRE_RADII of the found contact's centre (where sector seams would show)
-
-
-def load(folder: Path) -> Sensor:
-    background = cv2.imread(str(folder / "background.png"), cv2.IMREAD_COLOR)
-    rows = list(csv.DictReader(open(folder / "presses.csv")))
-    images = [cv2.imread(str(folder / r["file"]), cv2.IMREAD_COLOR) for r in rows]
-    published = [
-        (float(r["touch_center_x_px"]), float(r["touch_center_y_px"]), float(r["touch_radius_px"])) for r in rows
-    ]
-    return Sensor(folder.name, background, images, published, [r["file"] for r in rows])
+RANDOM_TRIPLES = 5
+SEED = 0
 
 
 def farthest(sensor: Sensor, candidates: list[int], k: int) -> list[int]:
@@ -115,8 +114,9 @@ def quadrant(sensor: Sensor, i: int) -> str:
     return f"{'top' if y < h / 2 else 'bottom'}-{'left' if x < w / 2 else 'right'}"
 
 
-def calibrations(sensor: Sensor, quick: bool) -> list[tuple[str, int, list[int]]]:
-    """(selection, k, calibration presses) for every row of the sensor."""
+def calibrations(sensor: Sensor, blind: Blind, quick: bool) -> tuple[list[tuple[str, int, list[int]]], int]:
+    """(selection, k, calibration presses) for every row of the sensor; and how many random triples were
+    drawn and dropped by the spread rule."""
     n = len(sensor.files)
     everyone = list(range(n))
     if n <= 5:  # the Mini: every press near the centre
@@ -125,64 +125,44 @@ def calibrations(sensor: Sensor, quick: bool) -> list[tuple[str, int, list[int]]
             for c in itertools.islice(itertools.combinations(everyone, 3), 0, 10, 2)
         ]
         rows += [("leave-one-out (k = 4)", 4, [j for j in everyone if j != i]) for i in everyone]
-        return rows[:2] + rows[5:6] if quick else rows
+        return (rows[:2] + rows[5:6] if quick else rows), 0
     rows = [("spread", k, farthest(sensor, everyone, k)) for k in (3, 5)]
     for q in QUADRANTS[:1] if quick else QUADRANTS:
         inside = [i for i in everyone if quadrant(sensor, i) == q]
         rows += [(f"one quadrant ({q})", k, farthest(sensor, inside, k)) for k in (3, 5) if len(inside) >= k]
-    return rows
-
-
-def score_held_out(sensor: Sensor, fit, held: list[int], gel: Elastomer) -> tuple[list[Score], dict[int, np.ndarray]]:
-    profile = provisional_profile(sensor.background, MM_PER_PX, gel, fit.light)
-    press = PressRender(profile, sphere(2 * BALL_RADIUS_MM))
-    bg = sensor.background.astype(np.float32)
-    ys, xs = np.mgrid[0 : bg.shape[0], 0 : bg.shape[1]]
-    scores, renders = [], {}
-    for i in held:
-        c = locate_press(sensor.background, Press(sensor.images[i], BALL_RADIUS_MM), MM_PER_PX, fit.light, gel=gel)
-        rendered = press.render(press.pose_of_pixel(c.centre_x_px, c.centre_y_px, -float(c.depth_mm or 0.0)))
-        renders[i] = rendered
-        real = sensor.images[i].astype(np.float32)
-        cx, cy, touch = sensor.published[i]
-        near = np.hypot(xs - cx, ys - cy) < NEAR_RADII * touch
-        err, base = np.abs(rendered.astype(np.float32) - real), np.abs(bg - real)
-        change = np.abs(rendered.astype(np.float32) - bg).sum(axis=2)
-        centre = np.hypot(xs - c.centre_x_px, ys - c.centre_y_px) < CENTRE_RADII * c.radius_px
-        scores.append(
-            Score(
-                sensor.files[i],
-                float(err[near].mean()),
-                float(base[near].mean()),
-                float(err.mean()),
-                float(base.mean()),
-                (c.centre_x_px, c.centre_y_px, c.radius_px),
-                float(np.percentile(change[near], 99)),
-                float(np.percentile(base.sum(axis=2)[near], 99)),
-                float(err[centre].mean()),
-            )
-        )
-    return scores, renders
+    triples, seen, dropped = [], set(), 0
+    rng = np.random.default_rng(SEED)
+    while len(triples) < (1 if quick else RANDOM_TRIPLES) and len(seen) < 2000:
+        chosen = tuple(sorted(int(i) for i in rng.choice(n, 3, replace=False)))
+        if chosen in seen:
+            continue
+        seen.add(chosen)
+        if blind.spread(sensor, list(chosen)):
+            triples.append((f"random spread triple #{len(triples) + 1}", 3, list(chosen)))
+        else:
+            dropped += 1
+    return rows + triples, dropped
 
 
 def sheet(
-    sensor: Sensor, picks: list[tuple[str, int]], renders: dict[int, np.ndarray], found: dict[int, tuple]
+    sensor: Sensor, picks: list[tuple[str, int]], renders: dict[int, np.ndarray], contacts: dict[int, tuple]
 ) -> np.ndarray:
     from sensor_sim.contact_find import Contact
 
     rows = [sheet_header()]
     for label, i in picks:
-        x, y, r = found[i]
+        x, y, r = contacts[i]
         real = sensor.images[i]
         whole = np.abs(renders[i].astype(np.float32) - real.astype(np.float32)).mean()
-        caption = f"{sensor.name} {sensor.files[i]} ({label}, held out): MAE {whole:.2f} whole frame"
+        caption = f"{sensor.name} {sensor.files[i]} ({label}, held out, blind; circle: published): MAE {whole:.2f}"
         rows.append(sheet_row(real, renders[i], Contact(x, y, r), caption))
     return np.vstack(rows)
 
 
-def write_sheet(sensor: Sensor, renders: dict[int, np.ndarray], found: dict[int, tuple], folder: Path) -> str:
+def write_sheet(sensor: Sensor, renders: dict[int, np.ndarray], folder: Path) -> str:
     """The sheet of the held-out presses nearest the centre, at the side edge and in a corner
-    (the Mini has centre presses only: the three nearest the centre)."""
+    (the Mini has centre presses only: the three nearest the centre), rendered frame-blind; the
+    circle is the published contact."""
     h, w = sensor.background.shape[:2]
     held = sorted(renders)
 
@@ -198,36 +178,80 @@ def write_sheet(sensor: Sensor, renders: dict[int, np.ndarray], found: dict[int,
         picks += [("centre", i) for i in by_centre[1:3]]
     folder.mkdir(parents=True, exist_ok=True)
     out = folder / f"optics_{sensor.name}.png"
-    cv2.imwrite(str(out), sheet(sensor, picks, renders, found))
+    cv2.imwrite(str(out), sheet(sensor, picks, renders, {i: sensor.published[i] for i in held}))
     return f"sheet: {out} ({', '.join(f'{label} {sensor.files[i]}' for label, i in picks)})"
+
+
+def depth_note(sensor: Sensor, blind: Blind, pairs: dict[int, PressScore]) -> str:
+    """The blind depths against the located ones (held-out presses, the last row that held each out)."""
+    idx = sorted(pairs)
+    published = np.array([sensor.published[i][2] for i in idx])
+    located_r = np.array([pairs[i].contact[2] for i in idx])
+    blind_d = np.array([blind.depth(sensor.published[i]) for i in idx])
+    located_d = np.array([pairs[i].depth_mm for i in idx])
+    ratio = float(np.median(published / located_r))
+    line = (
+        f"- {sensor.name}: blind depth {blind_d.min():.2f}–{blind_d.max():.2f} mm (mean {blind_d.mean():.2f}) from the "
+        f"published radii {published.min():.0f}–{published.max():.0f} px; located {located_d.min():.2f}–"
+        f"{located_d.max():.2f} mm (mean {located_d.mean():.2f}); published radius / located contact radius: median "
+        f"×{ratio:.2f}; depth search {blind.seconds:.2f} s for {len(blind.depths)} presses"
+    )
+    if ratio > 1.2:
+        line += (
+            f". The published radii are ×{ratio:.2f} the located contact's (the solver's at the refined depth; the "
+            "data README: ~1.5× the visible contact on the GelSight Mini): the blind placement presses deeper and "
+            "wider than the real press, and its rows carry that"
+        )
+    beyond = [sensor.files[i].removesuffix(".png") for i in idx if sensor.published[i][2] > blind.widest_px]
+    if beyond:
+        line += (
+            f". {len(beyond)} published radii are wider than the widest contact the 4 mm ball makes in the solver "
+            f"({blind.widest_px:.1f} px at the depth limit {blind.limit_mm:.2f} mm), placed at the limit: "
+            + ", ".join(beyond)
+        )
+    return line
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--data", type=Path, default=Path(__file__).resolve().parents[2] / "shared" / "data")
     ap.add_argument("--sheets", type=Path, help="write the side-by-side sheets into this folder (e.g. docs/img)")
-    ap.add_argument("--quick", action="store_true", help="fewer rows (one quadrant): a smoke run")
+    ap.add_argument("--quick", action="store_true", help="fewer rows (one quadrant, one random triple): a smoke run")
     ap.add_argument("--sensors", default=",".join(SENSORS), help="which sensors, comma-separated (default: both)")
     args = ap.parse_args()
     gel = Elastomer()
+    t_start = time.perf_counter()
+    load_start = os.getloadavg()[0]
     print(f"machine: {describe()}; data: {args.data}; {MM_PER_PX} mm/px, ball {2 * BALL_RADIUS_MM:g} mm, 3 mm gel\n")
-    print(
-        "| sensor | calibration | k | presses | held out | near MAE / background's | near ratio | worst press "
-        "| whole MAE / background's | whole below background | peak change render / real | centre MAE | fit s |"
+    placement = ["near", "worst press", "whole below bg", "centre", "red std render / real (ratio)", "red corr"]
+    header = (
+        ["sensor", "calibration", "k", "presses", "held out"]
+        + [f"blind {c}" for c in placement]
+        + [f"located {c}" for c in placement]
+        + ["depth mm blind / located", "fit s", "goals blind", "goals located"]
     )
-    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+    print("| " + " | ".join(header) + " |")
+    print("|" + "---|" * len(header), flush=True)
     finder: dict[str, list[tuple[str, float, float]]] = {}
     sheet_renders: dict[str, dict[int, np.ndarray]] = {}
-    sheet_found: dict[str, dict[int, tuple]] = {}
+    met_rows: list[tuple[str, str, dict, dict]] = []
+    notes: list[str] = []
     messages: list[str] = []
     for name in args.sensors.split(","):
         folder = args.data / name
         if not (folder / "presses.csv").is_file():
-            print(f"| {name} | not found in {args.data} | | | | | | | | | | | |")
+            print("| " + " | ".join([name, f"not found in {args.data}"] + [""] * (len(header) - 2)) + " |")
             continue
         sensor = load(folder)
+        blind = Blind(sensor, gel)
+        rows, dropped = calibrations(sensor, blind, args.quick)
+        if dropped:
+            messages.append(
+                f"{name}: {dropped} random triples drawn (seed {SEED}) failed the spread rule and were dropped"
+            )
         everyone = range(len(sensor.files))
-        for selection, k, chosen in calibrations(sensor, args.quick):
+        located_of: dict[int, PressScore] = {}
+        for selection, k, chosen in rows:
             t0 = time.perf_counter()
             fit = fit_optics(
                 sensor.background,
@@ -237,39 +261,65 @@ def main() -> None:
             )
             fit_s = time.perf_counter() - t0
             held = [i for i in everyone if i not in chosen]
-            scores, renders = score_held_out(sensor, fit, held, gel)
-            near, near_bg = np.mean([s.near for s in scores]), np.mean([s.near_bg for s in scores])
-            worst = max(scores, key=lambda s: s.near / s.near_bg)
-            below = sum(s.whole < s.whole_bg for s in scores)
-            print(
-                f"| {name} | {selection} | {k} | {', '.join(sensor.files[i].removesuffix('.png') for i in chosen)} | "
-                f"{len(held)} | {near:.2f} / {near_bg:.2f} | {near / near_bg:.0%} | {worst.file.removesuffix('.png')} "
-                f"{worst.near / worst.near_bg:.0%} | {np.mean([s.whole for s in scores]):.2f} / "
-                f"{np.mean([s.whole_bg for s in scores]):.2f} | {below} of {len(scores)} | "
-                f"{np.mean([s.peak for s in scores]):.0f} / {np.mean([s.peak_real for s in scores]):.0f} | "
-                f"{np.mean([s.centre for s in scores]):.1f} | {fit_s:.1f} |",
-                flush=True,
-            )
+            blind_scores, located_scores, renders = score_held_out(sensor, fit, held, gel, blind)
+            located_of.update(zip(held, located_scores))
+            b, loc = summarise(blind_scores), summarise(located_scores)
+            goal = near_goal(name, selection, k)
+            b_met, b_text = goals(b, goal)
+            l_met, l_text = goals(loc, goal)
+            met_rows.append((name, f"{selection} k={k}", b_met, l_met))
+            cells = [name, selection, str(k), ", ".join(sensor.files[i].removesuffix(".png") for i in chosen)]
+            cells += [str(len(held)), *b.cells(), *loc.cells(), f"{b.depth_mm:.2f} / {loc.depth_mm:.2f}"]
+            cells += [f"{fit_s:.1f}", b_text, l_text]
+            print("| " + " | ".join(cells) + " |", flush=True)
             if (selection, k) == ("spread", 5) or selection.startswith("leave"):
                 finder.setdefault(name, []).extend(
-                    (s.file, *np.subtract(s.found[:2], sensor.published[i][:2])) for s, i in zip(scores, held)
+                    (s.file, *np.subtract(s.contact[:2], sensor.published[i][:2])) for s, i in zip(located_scores, held)
                 )
                 sheet_renders.setdefault(name, {}).update(renders)
-                sheet_found.setdefault(name, {}).update({i: s.found for s, i in zip(scores, held)})
+        notes.append(depth_note(sensor, blind, located_of))
         if args.sheets and name in sheet_renders:
-            messages.append(write_sheet(sensor, sheet_renders[name], sheet_found[name], args.sheets))
+            messages.append(write_sheet(sensor, sheet_renders[name], args.sheets))
+    print(
+        "\nGoals (issue 40; near and centre: render MAE / background-only MAE there): near the contact, spread "
+        f"five ≤ {NEAR_GOALS['spread five']:.0%}, every spread triple ≤ {NEAR_GOALS['spread triple']:.0%}, one "
+        f"quadrant ≤ {NEAR_GOALS['one quadrant']:.0%} (the Mini's rows count as one quadrant); centre ≤ "
+        f"{CENTRE_GOAL:.0%} of the background's within 0.4 radii; whole frame below the background on every "
+        f"held-out press; red-change std of the render within {RED_STD_GOAL:.0%} of the real's (n/a: one press)."
+    )
+    for label, column in (("blind (headline)", 2), ("located", 3)):
+        tally = {}
+        for row in met_rows:
+            for goal, ok in row[column].items():
+                key = goal.split(" ≤")[0] if goal.startswith("near") else goal
+                tally.setdefault(key, []).append(ok)
+        print(
+            f"- {label}: "
+            + "; ".join(
+                f"{key} met on {sum(v is True for v in oks)} of {sum(v is not None for v in oks)} rows"
+                for key, oks in tally.items()
+            )
+            + f"; every goal on {sum(all(v is not False for v in row[column].values()) for row in met_rows)} of "
+            f"{len(met_rows)} rows"
+        )
+    print("\nPlacement depths (held-out presses):")
+    for line in notes:
+        print(line)
     print()
     for line in messages:
         print(line)
-    print("\nContact finder against the published centres (held-out presses, after refinement), px:")
-    for name, rows in finder.items():
-        d = np.array([[dx, dy] for _, dx, dy in rows])
+    print("\nContact finder against the published centres (located, held-out presses), px:")
+    for name, found in finder.items():
+        d = np.array([[dx, dy] for _, dx, dy in found])
         dist = np.hypot(d[:, 0], d[:, 1])
         print(
             f"- {name}: median offset {np.median(dist):.1f} px, max {dist.max():.1f} px "
-            f"({rows[int(dist.argmax())][0]}); "
-            f"mean dx {d[:, 0].mean():+.1f}, dy {d[:, 1].mean():+.1f}"
+            f"({found[int(dist.argmax())][0]}); mean dx {d[:, 0].mean():+.1f}, dy {d[:, 1].mean():+.1f}"
         )
+    print(
+        f"\nwall {time.perf_counter() - t_start:.0f} s; load average {load_start:.1f} at the start, "
+        f"{os.getloadavg()[0]:.1f} at the end"
+    )
 
 
 if __name__ == "__main__":
