@@ -20,7 +20,7 @@ resolution. The fit alternates:
 ``result.notes`` names what a person should know: a parameter pinned at a bound of its
 range, a press whose fit stopped at its depth limit. numpy/scipy/cv2 only.
 """
-# Over 400 lines (432): the fit's steps (contacts, light, blur, order, refinement) share one _Fitter's
+# Over 400 lines (440): the fit's steps (contacts, light, blur, order, refinement) share one _Fitter's
 # state and fit_optics runs them in order; the linear light fit and contact finding are apart (light_fit, contact_find).
 
 from __future__ import annotations
@@ -188,6 +188,14 @@ class _Fitter:
             c = Contact(float(cx), float(cy), float(p.radius_px or found.radius_px))
         depth = p.depth_mm if (p.depth_mm is not None and not p.given) else self.depth_for_radius(p, c, c.radius_px)
         depth = min(max(float(depth), 1e-3), self.max_depth(p))
+        if p.given and depth >= self.max_depth(p) - 1e-3:  # used as given, never refined: say it is not reachable
+            widest = self.contact_radius_px(p, Contact(c.centre_x_px, c.centre_y_px, 0.0, self.max_depth(p)))
+            if widest < c.radius_px - 0.5:
+                self.notes.append(
+                    f"{p.name or 'a press'}: its given contact radius ({c.radius_px:g} px) is wider than the ball "
+                    f"makes at the deepest press allowed ({widest:.1f} px at {self.max_depth(p):.2f} mm), so it is "
+                    "placed at that depth: check --mm-per-px, --ball-radius-mm and the radius"
+                )
         return Contact(c.centre_x_px, c.centre_y_px, c.radius_px, depth)
 
     # -- what the light is fitted on --------------------------------------------------------------

@@ -132,6 +132,26 @@ def test_manual_override_and_ignored_columns_are_said(tmp_path):
     assert (first["cx"], first["cy"], first["r"]) == ("151.0", "109.0", "21.0")  # used as given, not refined
 
 
+def test_a_given_radius_wider_than_the_ball_makes_is_said_not_clamped_silently(tmp_path):
+    """A press whose given radius no press of this ball can make (here 3 mm at 0.03 mm/px for a 2 mm ball) is
+    placed at the deepest press allowed, and the calibration says so, naming the press and both radii."""
+    synthetic_sensor(tmp_path, n=3)
+    rows = [
+        {"file": "press_0.png", "centre_x_px": "151", "centre_y_px": "109", "radius_px": "100"},
+        {"file": "press_1.png", "centre_x_px": "", "centre_y_px": "", "radius_px": ""},
+        {"file": "press_2.png", "centre_x_px": "", "centre_y_px": "", "radius_px": ""},
+    ]
+    write_csv(tmp_path / "presses.csv", rows)
+    result = runner.invoke(
+        app,
+        ["sensor", "calibrate", str(tmp_path), "--ball-radius-mm", "2", "--mm-per-px", "0.03", "--out"]
+        + [str(tmp_path / "x.toml")],
+    )
+    assert result.exit_code == 0, result.output
+    said = [line for line in result.output.splitlines() if "given contact radius (100 px)" in line]
+    assert len(said) == 1 and "press_0" in said[0] and "at the deepest press allowed" in said[0], result.output
+
+
 @pytest.mark.parametrize(
     "setup, args, message",
     [
