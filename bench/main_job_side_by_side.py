@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import os
 import re
-import resource
 import subprocess
 import time
 from pathlib import Path
@@ -25,29 +24,32 @@ DDIM_ROW = re.compile(r"^\| this model \(ddim, (\d+) steps\) \| ([^|]+) \| ([^|]
 
 def run_job(tree: Path, out: Path) -> dict:
     """One main job of ``tree`` into ``out``: its wall time, stages, peak memory and report row."""
-    env = dict(os.environ, PYTHONPATH=str(tree))
+    log = out.parent / f"{out.name}.log"
     start = time.perf_counter()
-    before = resource.getrusage(resource.RUSAGE_CHILDREN)
-    proc = subprocess.run(
-        ["bash", str(tree / "scripts" / "main_job.sh"), str(out)],
-        cwd=tree,
-        env=env,
-        capture_output=True,
-        text=True,
-    )
+    with open(log, "w") as sink:
+        proc = subprocess.Popen(
+            ["bash", str(tree / "scripts" / "main_job.sh"), str(out)],
+            cwd=tree,
+            env=dict(os.environ, PYTHONPATH=str(tree)),
+            stdout=sink,
+            stderr=subprocess.STDOUT,
+        )
+        # wait4: this job's own rusage, whose ru_maxrss (KiB) is the largest process of its tree; the
+        # process-wide RUSAGE_CHILDREN would carry an earlier, larger job's peak into later rows
+        _, status, usage = os.wait4(proc.pid, 0)
+        proc.returncode = os.waitstatus_to_exitcode(status)
     wall_s = time.perf_counter() - start
-    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    output = log.read_text()
     if proc.returncode != 0:
-        raise SystemExit(f"{tree}: the main job failed (exit {proc.returncode}): {proc.stderr.strip()[-400:]}")
-    stages = STAGES.search(proc.stdout)
+        raise SystemExit(f"{tree}: the main job failed (exit {proc.returncode}): {output.strip()[-400:]} ({log})")
+    stages = STAGES.search(output)
     report = (out / "report" / "report.md").read_text()
     ddim = DDIM_ROW.search(report)
     if stages is None or ddim is None:
-        raise SystemExit(f"{tree}: no stage line or DDIM row in the job's output ({out})")
+        raise SystemExit(f"{tree}: no stage line or DDIM row in the job's output ({log})")
     return {
         "wall_s": wall_s,
-        "cpu_s": (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime),
-        "peak_MB": after.ru_maxrss / 1024,  # the largest child so far (ru_maxrss of the children: KiB)
+        "peak_MB": usage.ru_maxrss / 1024,
         "stages": stages.group(1),
         "load": f"{stages.group(2).split()[0]} → {stages.group(3).split()[0]}",
         "ddim": f"{ddim.group(1)} steps: MSE {ddim.group(2).strip()}, MAE {ddim.group(3).strip()}, "

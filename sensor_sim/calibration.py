@@ -187,13 +187,14 @@ class _Fitter:
             cx, cy = p.centre_px or (found.centre_x_px, found.centre_y_px)
             c = Contact(float(cx), float(cy), float(p.radius_px or found.radius_px))
         depth = p.depth_mm if (p.depth_mm is not None and not p.given) else self.depth_for_radius(p, c, c.radius_px)
-        depth = min(max(float(depth), 1e-3), self.max_depth(p))
-        if p.given and depth >= self.max_depth(p) - 1e-3:  # used as given, never refined: say it is not reachable
-            widest = self.contact_radius_px(p, Contact(c.centre_x_px, c.centre_y_px, 0.0, self.max_depth(p)))
+        deepest = self.max_depth(p)
+        depth = min(max(float(depth), 1e-3), deepest)
+        if p.given and depth >= deepest - 1e-3:  # used as given, never refined: say it is not reachable
+            widest = self.contact_radius_px(p, Contact(c.centre_x_px, c.centre_y_px, 0.0, deepest))
             if widest < c.radius_px - 0.5:
                 self.notes.append(
                     f"{p.name or 'a press'}: its given contact radius ({c.radius_px:g} px) is wider than the ball "
-                    f"makes at the deepest press allowed ({widest:.1f} px at {self.max_depth(p):.2f} mm), so it is "
+                    f"makes at the deepest press allowed ({widest:.1f} px at {deepest:.2f} mm), so it is "
                     "placed at that depth: check --mm-per-px, --ball-radius-mm and the radius"
                 )
         return Contact(c.centre_x_px, c.centre_y_px, c.radius_px, depth)

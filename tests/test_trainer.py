@@ -9,7 +9,7 @@ import pytest
 import torch
 
 from model.denoiser.config import ModelConfig
-from model.training.trainer import Callback, TrainConfig, Trainer
+from model.training.trainer import Callback, TrainConfig, Trainer, cpu_has_native_bf16
 from tests.test_model_core import SMALL, make_split_dir
 
 
@@ -157,9 +157,7 @@ def test_cpu_precision_is_bf16_only_where_the_cpu_has_it_natively(monkeypatch):
         T._precision("fp8", "cpu")
 
 
-@pytest.mark.skipif(
-    not __import__("model.training.trainer", fromlist=["x"]).cpu_has_native_bf16(), reason="no native bf16 here"
-)
+@pytest.mark.skipif(not cpu_has_native_bf16(), reason="no native bf16 here")
 def test_bf16_on_the_cpu_trains_the_same_network_about_as_far_as_fp32():
     """The same ten steps in bf16 and in fp32 from the same weights and data: the losses agree to a few
     per cent (bf16 keeps 8 bits of mantissa in the products; the weights stay fp32)."""

@@ -213,16 +213,15 @@ def _cpu_copy(obj):
 
 def _precision(choice: str, device: str | None) -> str:
     """accelerate's mixed_precision for a TrainConfig choice. On the CPU: bf16 only where the CPU
-    multiplies bf16 natively (AVX-512 BF16 or AMX: oneDNN's bf16 kernels), where it is about 1.5×
-    faster a step and trains as well (docs/benchmarks.md, "Where the time goes"); ``auto`` takes it there
-    and fp32 elsewhere; fp16, and bf16 asked of a CPU without it, are refused."""
+    multiplies bf16 natively (AVX-512 BF16 or AMX: oneDNN's bf16 kernels), where a tiny-preset step is
+    about 1.2× faster and trains as well (docs/benchmarks.md, "bf16 on the CPU"); ``auto`` takes it
+    there and fp32 elsewhere; fp16, and bf16 asked of a CPU without it, are refused."""
     if choice not in ("auto", "no", "fp16", "bf16"):
         raise ValueError(f"mixed_precision must be auto, no, fp16 or bf16, got {choice!r}")
     if device == "cpu" or not torch.cuda.is_available():
-        if choice in ("auto", "no"):
-            return "bf16" if choice == "auto" and cpu_has_native_bf16() else "no"
-        if choice == "bf16" and cpu_has_native_bf16():
-            return "bf16"
+        native = choice in ("auto", "bf16") and cpu_has_native_bf16()
+        if choice in ("auto", "no") or native:
+            return "bf16" if native else "no"
         raise ValueError(
             f"mixed_precision {choice}: this CPU has no native {choice} arithmetic "
             "(bf16 needs AVX-512 BF16 or AMX); use auto or no"
