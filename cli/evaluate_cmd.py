@@ -10,7 +10,7 @@ from typing import Annotated, Optional
 
 import typer
 
-from cli.model_options import Threads, one_line_errors, sampler_settings
+from cli.model_options import SamplingPrecision, Threads, one_line_errors, sampler_settings
 
 evaluate_app = typer.Typer(add_completion=False)
 
@@ -88,6 +88,7 @@ def evaluate(
         ),
     ] = None,
     threads: Threads = None,
+    mixed_precision: SamplingPrecision = "auto",
 ):
     """MSE, MAE, SSIM, PSNR (and marker error) per sampler setting against seconds per image, beside the
     physics render and the paper's table."""
@@ -116,6 +117,7 @@ def evaluate(
         seed=seed,
         device=device,
         profile=profile,
+        precision=mixed_precision,
     )
     evaluated = evaluate_checkpoint(options, log=typer.echo)
     for ev in evaluated.parts:

@@ -10,7 +10,7 @@ from typing import Annotated, Optional
 
 import typer
 
-from cli.model_options import Threads, one_line_errors
+from cli.model_options import SamplingPrecision, Threads, one_line_errors
 
 generate_app = typer.Typer(add_completion=False)
 
@@ -87,6 +87,7 @@ def generate(
     ] = None,
     device: Annotated[Optional[str], typer.Option(help="cpu or cuda (default: cuda when available).")] = None,
     threads: Threads = None,
+    mixed_precision: SamplingPrecision = "auto",
 ):
     """Generate a tactile frame for an object, a wrench and a pose, or every frame of a split."""
     from dataset.import_checks import FORCE_N, POSE_LIMIT, TORQUE_NMM
@@ -120,6 +121,7 @@ def generate(
         seed=seed,
         size=size,
         device=device,
+        precision=mixed_precision,
     )
     made = generate_frames(options, log=typer.echo)
     if made.frames is not None:

@@ -1,4 +1,5 @@
-"""What the model commands share: the --threads option, the sampler settings' parser and their one-line errors."""
+"""What the model commands share: the --threads and --mixed-precision options, the sampler settings' parser
+and their one-line errors."""
 
 from __future__ import annotations
 
@@ -14,6 +15,15 @@ Threads = Annotated[
         "or the TACTILE_TORCH_THREADS environment variable).",
         min=1,
         max=256,
+    ),
+]
+
+SamplingPrecision = Annotated[
+    str,
+    typer.Option(
+        "--mixed-precision",
+        help="The network's arithmetic when sampling: auto (CPU: bf16 where the CPU has it natively, else fp32; "
+        "GPU: fp32), no (fp32) or bf16 (model/denoiser/precision.py).",
     ),
 ]
 

@@ -9,7 +9,8 @@ import pytest
 import torch
 
 from model.denoiser.config import ModelConfig
-from model.training.trainer import Callback, TrainConfig, Trainer, cpu_has_native_bf16
+from model.denoiser.precision import cpu_has_native_bf16
+from model.training.trainer import Callback, TrainConfig, Trainer
 from tests.test_model_core import SMALL, make_split_dir
 
 
@@ -134,27 +135,6 @@ def test_progress_lines_every_fifty_steps_and_at_the_end():
     trainer.train(until=5)
     assert [line.split("  ")[0] for line in lines] == ["step 2/5", "step 4/5", "step 5/5"]
     assert all("images/s" in line for line in lines)
-
-
-def test_cpu_precision_is_bf16_only_where_the_cpu_has_it_natively(monkeypatch):
-    """auto on the CPU: bf16 where oneDNN multiplies bf16 natively, fp32 elsewhere; bf16 asked of a
-    CPU without it, and fp16 on any CPU, are refused in one line naming the choice."""
-    from model.training import trainer as T
-
-    monkeypatch.setattr(T.torch.cuda, "is_available", lambda: False)
-    for native in (True, False):
-        monkeypatch.setattr(T, "cpu_has_native_bf16", lambda native=native: native)
-        assert T._precision("auto", "cpu") == ("bf16" if native else "no")
-        assert T._precision("no", "cpu") == "no"
-    monkeypatch.setattr(T, "cpu_has_native_bf16", lambda: True)
-    assert T._precision("bf16", None) == "bf16"
-    with pytest.raises(ValueError, match="mixed_precision fp16: this CPU has no native fp16"):
-        T._precision("fp16", "cpu")
-    monkeypatch.setattr(T, "cpu_has_native_bf16", lambda: False)
-    with pytest.raises(ValueError, match="mixed_precision bf16: this CPU has no native bf16"):
-        T._precision("bf16", "cpu")
-    with pytest.raises(ValueError, match="must be auto, no, fp16 or bf16"):
-        T._precision("fp8", "cpu")
 
 
 @pytest.mark.skipif(not cpu_has_native_bf16(), reason="no native bf16 here")

@@ -8,7 +8,7 @@ monitored here, poll by poll, so that a stop command (or the console closing) st
 between two safety checks instead of after the move. A protocol started from the page runs through
 cli/console/worker_protocol.py.
 """
-# Over 400 lines (447): the worker's thread, its command loop, jogging and reading are one lifecycle around
+# Over 400 lines (450): the worker's thread, its command loop, jogging and reading are one lifecycle around
 # one rig; the protocol part is already apart; moving the jog (60 lines) out is issue 39's.
 
 from __future__ import annotations

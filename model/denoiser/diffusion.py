@@ -97,22 +97,37 @@ class Diffusion:
             return math.sqrt(a) * x - math.sqrt(1 - a) * out
         return out
 
-    def denoiser(self, net, condition: torch.Tensor, wrench: torch.Tensor, *, guidance: float = 1.0) -> Denoise:
+    def denoiser(
+        self,
+        net,
+        condition: torch.Tensor,
+        wrench: torch.Tensor,
+        *,
+        guidance: float = 1.0,
+        autocast: torch.dtype | None = None,
+    ) -> Denoise:
         """D(y_t, t) → ŷ₀ for a batch of conditions. With guidance w ≠ 1 each call is one forward
         pass over 2B: the conditional half, then the unconditional (zeros), combined as
         uncond + w·(cond − uncond) on the network's output (the same as on ŷ₀: the conversion is
-        affine in the output)."""
+        affine in the output). ``autocast``: the network runs under autocast to that dtype
+        (model/denoiser/precision.py); its output, and all that follows, is fp32."""
         b = condition.shape[0]
         if guidance != 1.0:
             condition = torch.cat([condition, torch.zeros_like(condition)])  # (2B, 3, S, S)
             wrench = torch.cat([wrench, torch.zeros_like(wrench)])  # (2B, 6)
 
+        def run(x: torch.Tensor, tt: torch.Tensor) -> torch.Tensor:
+            if autocast is None:
+                return net(x, tt, condition, wrench)
+            with torch.autocast(x.device.type, dtype=autocast):
+                return net(x, tt, condition, wrench).float()
+
         def denoise(x: torch.Tensor, t: int) -> torch.Tensor:
             if guidance == 1.0:
-                out = net(x, torch.full((b,), t, device=x.device, dtype=torch.long), condition, wrench)
+                out = run(x, torch.full((b,), t, device=x.device, dtype=torch.long))
             else:
                 tt = torch.full((2 * b,), t, device=x.device, dtype=torch.long)
-                cond, uncond = net(torch.cat([x, x]), tt, condition, wrench).chunk(2)  # (B, 3, S, S) each
+                cond, uncond = run(torch.cat([x, x]), tt).chunk(2)  # (B, 3, S, S) each
                 out = uncond + guidance * (cond - uncond)
             return self.to_x0(out, x, t)
 
@@ -130,11 +145,13 @@ class Diffusion:
         guidance: float = 1.0,
         generator: torch.Generator | None = None,
         same_noise: bool = False,
+        autocast: torch.dtype | None = None,
     ) -> torch.Tensor:
         """Tactile images in [−1, 1], (B, 3, S, S), for a batch of conditions, from noise drawn
         with ``generator`` (then the sampler's own noise, from the same stream). ``same_noise``: every
         image of the batch starts from the one initial noise a batch of one would draw (what generating
-        them one at a time from the same seed gives, with a sampler that draws no noise of its own)."""
+        them one at a time from the same seed gives, with a sampler that draws no noise of its own).
+        ``autocast``: the network's arithmetic (``denoiser``; None: fp32)."""
         if sampler not in SAMPLERS:
             raise ValueError(f"sampler must be one of {', '.join(SAMPLERS)}, got {sampler!r}")
         timesteps = spaced_timesteps(self.cfg.train_timesteps, steps, SPACING[sampler])
@@ -142,7 +159,7 @@ class Diffusion:
         x = torch.randn((first, 3, *condition.shape[2:]), device=condition.device, generator=generator)
         if same_noise:
             x = x.repeat(condition.shape[0], 1, 1, 1)
-        denoise = self.denoiser(net, condition, wrench, guidance=guidance)
+        denoise = self.denoiser(net, condition, wrench, guidance=guidance, autocast=autocast)
         span = self.cfg.residual_gain if self.cfg.residual else 1.0  # the target's range: ±gain for a residual
         kw = {"clip": span} if sampler in CLIPPED else {}
         out = SAMPLERS[sampler](denoise, x, timesteps, self.alpha_bar, generator=generator, **kw).clamp(-span, span)

@@ -79,10 +79,11 @@ def evaluate(
     *,
     part: str = "test",
     device: str = "cpu",
+    precision: str = "auto",
     **kwargs,
 ) -> Evaluation:
-    """One part of a split (``evaluate_part``'s options)."""
-    return evaluate_part(TrainedModel.load(run_dir, device=device), split_dir, part=part, **kwargs)
+    """One part of a split (``evaluate_part``'s options; ``precision``: TrainedModel.load's)."""
+    return evaluate_part(TrainedModel.load(run_dir, device=device, precision=precision), split_dir, part=part, **kwargs)
 
 
 def test_parts(split_dir: str | Path) -> list[str]:
@@ -100,6 +101,7 @@ def evaluate_parts(
     *,
     parts: list[str] | None = None,
     device: str = "cpu",
+    precision: str = "auto",
     log: Callable[[str], None] = lambda line: None,
     **kwargs,
 ) -> list[Evaluation]:
@@ -112,7 +114,7 @@ def evaluate_parts(
     check_unchanged(manifest, split_dir)  # a run file changed since the split: refused before anything loads
     if kwargs.get("baseline", True):
         _check_profiles(split_dir, kwargs.get("profile"))
-    model = TrainedModel.load(run_dir, device=device)
+    model = TrainedModel.load(run_dir, device=device, precision=precision)
     out = []
     for part in parts or test_parts(split_dir):
         log(f"part {part}:")
@@ -327,6 +329,7 @@ def _context(model: TrainedModel, data: TactileDataset, part: str, frames: int) 
     import torch
 
     from common.machine import describe
+    from model.denoiser.precision import arithmetic_words
 
     cfg, m = model.cfg, data.manifest
     objects = sorted({str(r.get("object", "?")) for r in m["runs"]})
@@ -367,7 +370,8 @@ def _context(model: TrainedModel, data: TactileDataset, part: str, frames: int) 
             else ""
         ),
         "machine": f"{describe()}, device {device}, torch "
-        f"{torch.__version__} with {torch.get_num_threads()} thread(s); load average at the start "
+        f"{torch.__version__} with {torch.get_num_threads()} thread(s), sampling in "
+        f"{arithmetic_words(model.autocast)}; load average at the start "
         f"{os.getloadavg()[0]:.1f} (timings are warm, after one untimed batch, and share the machine "
         "with whatever else ran)",
     }

@@ -33,6 +33,7 @@ class EvaluateOptions:
     seed: int = 0
     device: str | None = None
     profile: Path | None = None
+    precision: str = "auto"  # the network's arithmetic when sampling (model/denoiser/precision.py)
 
 
 @dataclass(frozen=True)
@@ -74,6 +75,7 @@ def evaluate(opts: EvaluateOptions, log: Callable[[str], None]) -> Evaluated:
         seed=opts.seed,
         batch_size=opts.batch_size,
         device=opts.device or ("cuda" if torch.cuda.is_available() else "cpu"),
+        precision=opts.precision,
         log=log,
         profile=opts.profile,
         sweep=sweep,

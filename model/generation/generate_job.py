@@ -32,6 +32,7 @@ class GenerateOptions:
     seed: int = 0
     size: int | None = None
     device: str | None = None
+    precision: str = "auto"  # the network's arithmetic (model/denoiser/precision.py)
 
 
 @dataclass(frozen=True)
@@ -55,7 +56,7 @@ def generate(opts: GenerateOptions, log: Callable[[str], None]) -> Generated:
 
     from model.generation.inference import TrainedModel
 
-    model = TrainedModel.load(opts.checkpoint, device_for(opts.device))
+    model = TrainedModel.load(opts.checkpoint, device_for(opts.device), opts.precision)
     if opts.split is not None:
         written = model.generate_split(
             opts.split,

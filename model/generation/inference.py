@@ -66,6 +66,7 @@ def generate_items(
     batch_size: int = 64,
     physics: PhysicsSpec | None = None,
     same_noise: bool = False,
+    autocast: torch.dtype | None = None,
 ):
     """Generated frames (BGR uint8), in order, for Dataset items (their condition and wrench),
     ``batch_size`` at a time from one noise stream seeded with ``seed``; ``same_noise``: every item
@@ -73,7 +74,8 @@ def generate_items(
     generating each alone from ``seed`` does, in one batch (``Diffusion.sample``). A physics-conditioned
     network gets each item's physics render: the item's own, else rendered through ``physics``
     (the model's PhysicsSpec, ``add_physics``); a model whose physics channels sit at the depth Fz
-    implies (``physics_depth = "force"``) gets every render there."""
+    implies (``physics_depth = "force"``) gets every render there. ``autocast``: the network's
+    arithmetic (None: fp32; model/denoiser/precision.py)."""
     cfg = getattr(net, "cfg", None)
     g = torch.Generator(device=device).manual_seed(seed)
     for lo in range(0, len(items), batch_size):
@@ -90,7 +92,15 @@ def generate_items(
         if same_noise:  # each batch from the seed's first draw, as each item alone would be
             g = torch.Generator(device=device).manual_seed(seed)
         out = diffusion.sample(
-            net, cond, wrench, steps=steps, sampler=sampler, guidance=guidance, generator=g, same_noise=same_noise
+            net,
+            cond,
+            wrench,
+            steps=steps,
+            sampler=sampler,
+            guidance=guidance,
+            generator=g,
+            same_noise=same_noise,
+            autocast=autocast,
         )
         yield from (tensor_to_image(x) for x in out)
 
@@ -108,9 +118,16 @@ class TrainedModel:
     physics: PhysicsSpec | None = None  # what renders the physics channels (physics conditioning only)
     _renderers: dict | None = None  # object name → its ObjectRender, made on first use
     trained: str = ""  # how far it was trained, in words (from the checkpoint; reports state it)
+    autocast: torch.dtype | None = None  # the network's arithmetic when sampling (None: fp32)
 
     @classmethod
-    def load(cls, run_dir: str | Path, device: str = "cpu") -> "TrainedModel":
+    def load(cls, run_dir: str | Path, device: str = "cpu", precision: str = "auto") -> "TrainedModel":
+        """The run's EMA weights on ``device``, sampling in the arithmetic ``precision`` gives there
+        (``--mixed-precision``: auto, no, bf16; model/denoiser/precision.py)."""
+        from model.denoiser.precision import sampling_dtype
+
+        dev = torch.device(device)
+        autocast = sampling_dtype(precision, dev)  # refused before the checkpoint is read
         run_dir = C.run_folder(run_dir)  # the training folder, its checkpoint folder or a file in it
         ck = C.folder(run_dir)
         meta = C.read_state(
@@ -124,7 +141,6 @@ class TrainedModel:
         physics = None if raw is None else PhysicsSpec.from_meta(raw, str(ck / C.STATE))
         net = build_network(cfg)
         C.load_weights(net, ck, C.EMA)
-        dev = torch.device(device)
         return cls(
             net.to(dev).eval(),
             Diffusion(cfg),
@@ -136,6 +152,7 @@ class TrainedModel:
             dev,
             physics,
             trained=_trained(meta),
+            autocast=autocast,
         )
 
     def generate(
@@ -175,6 +192,7 @@ class TrainedModel:
             sampler=sampler,
             guidance=guidance,
             generator=g,
+            autocast=self.autocast,
         )[0]
         return tensor_to_image(out)
 
@@ -219,7 +237,9 @@ class TrainedModel:
 
     def generate_items(self, items: list[dict], **kwargs):
         """``generate_items`` with this model's EMA weights (and physics render)."""
-        return generate_items(self.net, self.diffusion, items, self.device, physics=self.physics, **kwargs)
+        return generate_items(
+            self.net, self.diffusion, items, self.device, physics=self.physics, autocast=self.autocast, **kwargs
+        )
 
     def generate_split(
         self,

@@ -34,6 +34,8 @@ from typing import Sequence
 import numpy as np
 import torch
 
+from model.denoiser.precision import training_precision
+
 ITEM_CACHE_BYTES = 1 << 30  # items kept in memory up to this many bytes of tensors; the rest are re-read
 
 
@@ -77,7 +79,7 @@ class Trainer:
         from accelerate import Accelerator
 
         self.config = config
-        self.acc = Accelerator(cpu=device == "cpu", mixed_precision=_precision(config.mixed_precision, device))
+        self.acc = Accelerator(cpu=device == "cpu", mixed_precision=training_precision(config.mixed_precision, device))
         self.device = self.acc.device
         self.is_main = self.acc.is_main_process
         if config.batch_size % self.acc.num_processes:
@@ -209,31 +211,3 @@ def _cpu_copy(obj):
     if isinstance(obj, (list, tuple)):
         return type(obj)(_cpu_copy(v) for v in obj)
     return obj
-
-
-def _precision(choice: str, device: str | None) -> str:
-    """accelerate's mixed_precision for a TrainConfig choice. On the CPU: bf16 only where the CPU
-    multiplies bf16 natively (AVX-512 BF16 or AMX: oneDNN's bf16 kernels), where a tiny-preset step is
-    about 1.2× faster and trains as well (docs/benchmarks.md, "bf16 on the CPU"); ``auto`` takes it
-    there and fp32 elsewhere; fp16, and bf16 asked of a CPU without it, are refused."""
-    if choice not in ("auto", "no", "fp16", "bf16"):
-        raise ValueError(f"mixed_precision must be auto, no, fp16 or bf16, got {choice!r}")
-    if device == "cpu" or not torch.cuda.is_available():
-        native = choice in ("auto", "bf16") and cpu_has_native_bf16()
-        if choice in ("auto", "no") or native:
-            return "bf16" if native else "no"
-        raise ValueError(
-            f"mixed_precision {choice}: this CPU has no native {choice} arithmetic "
-            "(bf16 needs AVX-512 BF16 or AMX); use auto or no"
-        )
-    if choice == "auto":
-        return "bf16" if torch.cuda.is_bf16_supported() else "fp16"
-    return choice
-
-
-def cpu_has_native_bf16() -> bool:
-    """True where oneDNN runs bf16 convolutions natively on this CPU (AVX-512 BF16 or AMX)."""
-    try:
-        return bool(torch.backends.mkldnn.is_available() and torch.ops.mkldnn._is_mkldnn_bf16_supported())
-    except (AttributeError, RuntimeError):
-        return False
