@@ -12,15 +12,16 @@ resolution. The fit alternates:
    rim's circle), each depth from its contact radius through the solver (or the press's own);
 2. the light for those contacts: per channel a smooth lookup table over the surface normal,
    position terms (the tables' change across the field) and sink terms (the colour change of
-   pressed-in gel), linear in all of them (``light_fit``); the optical blur by best fit over
-   [0, BLUR_MAX_MM]; the position terms kept only when leaving a press out says they help;
+   pressed-in gel), linear in all of them (``light_fit``; the pixels near each contact's centre
+   weigh more); the optical blur by best fit over [0, BLUR_MAX_MM] (every pixel alike); the
+   position terms kept only when leaving a press out says they help;
 3. each contact (centre, depth) refined under that light (Gauss–Newton on the rendered press,
    robust weights), then the light once more.
 
 ``result.notes`` names what a person should know: a parameter pinned at a bound of its
 range, a press whose fit stopped at its depth limit. numpy/scipy/cv2 only.
 """
-# Over 400 lines (440): the fit's steps (contacts, light, blur, order, refinement) share one _Fitter's
+# Over 400 lines (453): the fit's steps (contacts, light, blur, order, refinement) share one _Fitter's
 # state and fit_optics runs them in order; the linear light fit and contact finding are apart (light_fit, contact_find).
 
 from __future__ import annotations
@@ -54,6 +55,11 @@ TABLE_BINS = 21  # normal grid: 0.1 steps in nx, ny
 FIT_RADII = 3.0  # pixels within this many contact radii of a press enter the fit
 NEAR_RADII = 1.5  # "near the contact": where the blur is chosen (and renders are scored)
 SAMPLE_STEP = 2  # every second pixel (rows and columns) enters the fit
+# A fitted pixel d contact radii from the centre weighs max(d, CENTRE_WEIGHT_RADII) ** -CENTRE_WEIGHT_POWER
+# (mean 1 per press), so the few pixels of near-vertical normals at the centre are not outvoted by the wide
+# ring of gel outside the contact (issue 40: the centre's point). Power 1 (every ring alike) is truer at the
+# centre still but costs the GelSight Mini's shallow presses 3-4 points near the contact.
+CENTRE_WEIGHT_RADII, CENTRE_WEIGHT_POWER = 0.15, 0.5
 BLUR_MAX_MM = 0.5  # the optical blur's range is [0, BLUR_MAX_MM]
 MIN_POSITION_PRESSES, MIN_SPAN = 3, 0.4  # presses needed, and the share of the field they span, for position terms
 MIN_CHOICE_PRESSES = 4  # fewer: too few to judge the position terms by leaving a press out (two left)
@@ -206,7 +212,8 @@ class _Fitter:
         x, y = int(round(c.centre_x_px)), int(round(c.centre_y_px))
         return slice(max(y - half, 0), min(y + half, h)), slice(max(x - half, 0), min(x + half, w))
 
-    def samples(self, p: Press, c: Contact, sink: np.ndarray, blur_mm: float) -> PressSamples:
+    def samples(self, p: Press, c: Contact, sink: np.ndarray, blur_mm: float, weighted: bool = True) -> PressSamples:
+        """The press's fitted pixels; ``weighted``: the centre weighs more (CENTRE_WEIGHT_*), else all alike."""
         win = self.window(c, FIT_RADII, int(4 * blur_mm / self.mm) + 4)
         probe = LightModel(np.zeros((3, 3, 3), np.float32), blur_mm)
         s = sink[win]
@@ -223,8 +230,11 @@ class _Fitter:
         bg = self.bg[win][inside]
         shade = self.shade[win][inside] if self.shade is not None else np.ones_like(bg)
         target = p.image[win].astype(np.float32)[inside] - bg
-        near = np.hypot(cols[inside] - c.centre_x_px, rows[inside] - c.centre_y_px) < NEAR_RADII * c.radius_px
-        return PressSamples(idx, wt.astype(np.float64), x, y, s[inside].astype(np.float64), shade, target, near)
+        d = np.hypot(cols[inside] - c.centre_x_px, rows[inside] - c.centre_y_px) / c.radius_px
+        weight = np.maximum(d, CENTRE_WEIGHT_RADII) ** -CENTRE_WEIGHT_POWER if weighted else np.ones_like(d)
+        weight /= weight.mean()
+        sink_in = s[inside].astype(np.float64)
+        return PressSamples(idx, wt.astype(np.float64), x, y, sink_in, shade, target, d < NEAR_RADII, weight)
 
     def light(self, contacts: list[Contact], sinks: list[np.ndarray], blur_mm: float, order: OrderChoice) -> LightModel:
         samples = [self.samples(p, c, s, blur_mm) for p, c, s in zip(self.presses, contacts, sinks)]
@@ -241,11 +251,12 @@ class _Fitter:
         )
 
     def blur(self, contacts: list[Contact], sinks: list[np.ndarray]) -> float:
-        """The optical blur with the smallest leave-one-press-out absolute error (table and sink terms;
-        one press: in-sample), by golden-section search over [0, BLUR_MAX_MM]."""
+        """The optical blur with the smallest leave-one-press-out absolute error (table and sink terms,
+        every pixel alike: the centre's weight chooses a blur at the top of the range, which smooths the rims
+        away; one press: in-sample), by golden-section search over [0, BLUR_MAX_MM]."""
 
         def rms(blur_mm: float) -> float:
-            samples = [self.samples(p, c, s, blur_mm) for p, c, s in zip(self.presses, contacts, sinks)]
+            samples = [self.samples(p, c, s, blur_mm, weighted=False) for p, c, s in zip(self.presses, contacts, sinks)]
             return held_out_mae(samples, TABLE_BINS)
 
         ratio = (math.sqrt(5) - 1) / 2

@@ -9,7 +9,8 @@ entries, bilinear in the normal; the position terms times x̃, ỹ; the sink ter
 sink), so all three channels share one design matrix: each press contributes its Gram matrix
 once, any subset of presses is a sum, and leaving a press out costs one solve. Normals the
 presses never showed are filled smoothly (a grid-Laplacian penalty); the flat normal's
-entries are held at 0 (the unpressed gel shows the background). numpy/scipy only.
+entries are held at 0 (the unpressed gel shows the background). Each pixel counts with its
+press's ``weight`` (least squares weighted; ``PressSamples.weight``, by default 1). numpy/scipy only.
 """
 
 from __future__ import annotations
@@ -41,11 +42,16 @@ class PressSamples:
     shade: np.ndarray
     target: np.ndarray
     near: np.ndarray  # (n,) bool: within 1.5 contact radii (where renders are scored)
+    weight: np.ndarray | None = None  # (n,) each pixel's weight in the least squares (mean 1); None: all 1
     matrices: dict = field(default_factory=dict, repr=False)  # design rows per table size, made once
 
     @property
     def n(self) -> int:
         return len(self.target)
+
+    @property
+    def weights(self) -> np.ndarray:
+        return np.ones(self.n) if self.weight is None else self.weight
 
 
 @dataclass
@@ -123,7 +129,8 @@ class _Normal:
 def _normal(design: _Design, s: PressSamples) -> _Normal:
     A = design.matrix(s)
     y = s.target / s.shade  # the change over the shading: one design for all three channels
-    return _Normal((A.T @ A).tocsr(), np.asarray(A.T @ y), (y * y).sum(axis=0), s.n)
+    wy = y * s.weights[:, None]
+    return _Normal((A.T @ sp.diags(s.weights) @ A).tocsr(), np.asarray(A.T @ wy), (wy * y).sum(axis=0), s.n)
 
 
 def _solve(design: _Design, parts: list[_Normal]) -> np.ndarray:
@@ -188,9 +195,9 @@ def fit_low_rank(samples: list[PressSamples], bins: int, ridge: float, base: np.
     design = _Design(bins)
     A_T = [design.tables_of(design.matrix(s)) for s in samples]
     n = sum(s.n for s in samples)
-    G = A_T[0].T @ A_T[0]
-    for a in A_T[1:]:
-        G = G + a.T @ a
+    G = A_T[0].T @ sp.diags(samples[0].weights) @ A_T[0]
+    for a, smp in zip(A_T[1:], samples[1:]):
+        G = G + a.T @ sp.diags(smp.weights) @ a
     reg = design.regulariser(n)[: design.table_cols, : design.table_cols]
     lu = splu((G + reg).tocsc())
     if base is None:
@@ -210,10 +217,11 @@ def fit_low_rank(samples: list[PressSamples], bins: int, ridge: float, base: np.
             for a, smp in zip(A_T, samples):
                 F = _features(a, smp, table[ch], rot[ch])
                 y = smp.target[:, ch] / smp.shade[:, ch]
-                GTF += np.asarray(a.T @ F)
-                GFF += F.T @ F
-                bT += a.T @ y
-                bF += F.T @ y
+                wF, wy = F * smp.weights[:, None], y * smp.weights
+                GTF += np.asarray(a.T @ wF)
+                GFF += F.T @ wF
+                bT += a.T @ wy
+                bF += F.T @ wy
             GFF += np.eye(7) * (ridge * n)
             # Schur complement: (GFF - GTFᵀ (G+R)⁻¹ GTF) β = bF - GTFᵀ (G+R)⁻¹ bT
             inv_bT = lu.solve(bT)
@@ -243,10 +251,11 @@ def _low_rank_change(s: PressSamples, table, position, sink) -> np.ndarray:
 
 
 def _low_rank_residual(samples: list[PressSamples], table, position, sink) -> tuple[float, int]:
-    """Squared residual (over the shading, all channels) of samples under a low-rank fit."""
+    """Weighted squared residual (over the shading, all channels) of samples under a low-rank fit."""
     rss, n = 0.0, 0
     for s in samples:
-        rss += float(np.sum((s.target / s.shade - _low_rank_change(s, table, position, sink)) ** 2))
+        r2 = (s.target / s.shade - _low_rank_change(s, table, position, sink)) ** 2
+        rss += float(np.sum(r2 * s.weights[:, None]))
         n += s.n
     return rss, n
 
