@@ -248,6 +248,7 @@ class _Fitter:
             sink_bgr=terms.sink.astype(np.float32),
             position_scale_mm=self.position_scale_mm,
             position_range=self.position_range(contacts),
+            sink_max_mm=max(float(s.sink.max()) for s in samples),
         )
 
     def blur(self, contacts: list[Contact], sinks: list[np.ndarray]) -> float:

@@ -6,7 +6,8 @@ Per channel, at a place (x, y) of the frame with surface normal n and sink s (mm
     change = shade(x, y) · [T(n) + x̃·Tx(n) + ỹ·Ty(n) + s·(k + kx·x̃ + ky·ỹ)]
 
 T, Tx, Ty: smooth lookup tables over the normal (T(flat) = 0); x̃, ỹ: the position from the
-frame's centre over ``position_scale_mm`` (image axes, bounded over the frame); shade: the
+frame's centre over ``position_scale_mm`` (image axes, bounded over the frame); s: the sink, held
+at ``sink_max_mm`` beyond it (the deepest the fitted presses were); shade: the
 background's brightness relative to ``reference_bgr`` (multiplicative shading). Without the
 position and sink terms (``position_bgr``, ``sink_bgr`` None: profiles of format 1) it is the
 table alone, computed as before. Parameters only (what a sensor profile stores and the
@@ -121,7 +122,9 @@ class LightModel:
     ``sink_bgr`` (3, 3): per channel, the change per mm of sink: k, kx, ky;
     ``position_scale_mm``: the length that makes x̃, ỹ (> 0 when either is given);
     ``position_range``: (x̃ low, x̃ high, ỹ low, ỹ high) where the presses fitted them were: beyond
-    it the position terms stay at its edge (a light fitted in one region is not extrapolated).
+    it the position terms stay at its edge (a light fitted in one region is not extrapolated);
+    ``sink_max_mm``: the deepest sink of those presses: deeper, the sink terms stay at its value
+    (a linear change fitted on shallow presses is not carried to deep ones; inf: not held).
     """
 
     table_bgr: np.ndarray
@@ -132,6 +135,7 @@ class LightModel:
     sink_bgr: np.ndarray | None = None
     position_scale_mm: float = 0.0
     position_range: tuple[float, float, float, float] = (-math.inf, math.inf, -math.inf, math.inf)
+    sink_max_mm: float = math.inf
     _cells: np.ndarray = field(init=False, repr=False, compare=False)  # derived from table_bgr
     _planes: list[np.ndarray] = field(init=False, repr=False, compare=False)  # each channel's table
 
@@ -179,6 +183,8 @@ class LightModel:
         lo_x, hi_x, lo_y, hi_y = (float(v) for v in self.position_range)
         if any(math.isnan(v) for v in (lo_x, hi_x, lo_y, hi_y)) or lo_x > hi_x or lo_y > hi_y:
             raise ValueError(f"position_range must be x low <= x high, y low <= y high, got {self.position_range}")
+        if not (self.sink_max_mm > 0):  # NaN fails too
+            raise ValueError(f"sink_max_mm must be > 0 mm (inf: not held), got {self.sink_max_mm}")
 
     @property
     def bins(self) -> int:
@@ -228,7 +234,10 @@ class LightModel:
                 looked *= weight
                 out += looked
         if planes.sink is not None and sink_mm is not None:
-            out += planes.sink * sink_mm.astype(np.float32, copy=False)
+            sink = sink_mm.astype(np.float32, copy=False)
+            if math.isfinite(self.sink_max_mm):
+                sink = np.minimum(sink, np.float32(self.sink_max_mm))
+            out += planes.sink * sink
         np.clip(out, -255.0, 255.0, out=out)
         return out
 

@@ -10,10 +10,12 @@ marker layout for marker kinds and the camera's noise (``SensorNoise``). Every v
 checked on load: a missing key, a NaN or infinity, or a value out of range is a
 ``ProfileError`` naming the file and key.
 
-Formats: ``[sensor] format = 2`` (written since the position-dependent light: position and
-sink terms, correlated noise in ``[noise]``); a file without ``format`` is a profile of
-format 1 (one normal table, ``[sensor] noise_std`` of independent noise at the frame's
-pixels), read as exactly what it says. Any other format is refused in one line.
+Formats: ``[sensor] format = 3`` (written since the sink's terms are held at the deepest
+calibration press: ``[optics] sink_max_mm``); ``format = 2`` (the position-dependent light:
+position and sink terms, correlated noise in ``[noise]``; read with the sink never held); a
+file without ``format`` is a profile of format 1 (one normal table, ``[sensor] noise_std`` of
+independent noise at the frame's pixels), read as exactly what it says. Any other format is
+refused in one line.
 
 A run recorded with a profile stores ``profile.record()`` (name, content hash, file);
 ``profile_from_record`` finds the same profile again (by hash, never by name alone).
@@ -40,7 +42,7 @@ DEFAULT_PROFILE = Path(__file__).parent / "data" / "gelsight_mini.toml"
 # Shipped profiles that runs may record besides the default: the default before the
 # position-dependent light (format 1), so that runs simulated with it find it again.
 SHIPPED_PROFILES = (DEFAULT_PROFILE, Path(__file__).parent / "data" / "gelsight_mini_format1.toml")
-FORMATS = (1, 2)
+FORMATS = (1, 2, 3)
 
 
 class ProfileError(ValueError):
@@ -63,7 +65,7 @@ class SensorProfile:
     marker_radius_mm: float = 0.17
     marker_darkness: float = 0.8
     path: str = ""  # the TOML it was loaded from ("" when built in memory)
-    format: int = 2  # the file format it was read from or will be written in
+    format: int = 3  # the file format it was read from or will be written in
 
     @property
     def width_mm(self) -> float:
@@ -117,6 +119,8 @@ class SensorProfile:
             h.update(f"|format 2|{'|'.join(repr(float(v)) for v in extra)}".encode())
             for part in (light.position_bgr, light.sink_bgr):
                 h.update(b"-" if part is None else np.ascontiguousarray(part, dtype=np.float32).tobytes())
+        if self.format >= 3:  # formats 1 and 2 hash as runs recorded them
+            h.update(f"|format 3|{_finite_range([light.sink_max_mm])[0]!r}".encode())
         return h.hexdigest()
 
     def record(self) -> str:
@@ -214,7 +218,7 @@ def _noise(path: Path, data: dict, fmt: int) -> SensorNoise:
 
 
 def _position_and_sink(path: Path, data: dict, fmt: int, bins: int) -> dict:
-    """The light's position and sink terms (format 2; none in format 1)."""
+    """The light's position and sink terms (format 2, and the sink's hold from format 3; none in format 1)."""
     if fmt == 1:
         return {}
     order = _number(path, data, "optics", "position_order", 0, 1)
@@ -228,6 +232,8 @@ def _position_and_sink(path: Path, data: dict, fmt: int, bins: int) -> dict:
         "position_scale_mm": float(scale),
         "position_range": tuple(float(v) for v in bounds),
     }
+    if fmt >= 3:
+        terms["sink_max_mm"] = float(_number(path, data, "optics", "sink_max_mm", 1e-3, 1e6))
     if order == 1:
         terms["position_bgr"] = np.stack(
             [np.stack([_table(path, data, f"position_{axis}_{c}", bins) for axis in "xy"]) for c in "bgr"]

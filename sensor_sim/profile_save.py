@@ -5,6 +5,7 @@ content hash). The reading side, and the checks every value passes, are sensor_s
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import cv2
@@ -31,6 +32,8 @@ def save_profile(profile: SensorProfile, path: str | Path) -> Path:
     light, noise = profile.light, profile.noise
     if profile.format == 1 and (light.extended or not noise.independent):
         raise ProfileError(f"{path}: a profile of format 1 holds no position or sink terms and no correlated noise")
+    if profile.format == 2 and math.isfinite(light.sink_max_mm):
+        raise ProfileError(f"{path}: a profile of format 2 holds no sink_max_mm (format 3 does)")
     tables = "\n".join(f"table_{c} = {_toml_rows(light.table_bgr[i])}" for i, c in enumerate("bgr"))
     if profile.format == 1:
         noise_line, noise_section, terms = (
@@ -53,6 +56,8 @@ channel_correlation = {_toml_numbers(noise.channel_correlation)}  # b-g, b-r, g-
             f"position_range = {_toml_numbers(_finite_range(light.position_range))}  # x~, y~ held within\n"
             f"sink_bgr = [{', '.join(_toml_numbers(row) for row in sink)}]  # per mm of sink: k, kx, ky per channel\n"
         )
+        if profile.format >= 3:
+            terms += f"sink_max_mm = {_finite_range([light.sink_max_mm])[0]!r}  # deeper, the sink terms stay at this\n"
         if light.position_bgr is not None:
             terms += (
                 "\n".join(
@@ -62,7 +67,7 @@ channel_correlation = {_toml_numbers(noise.channel_correlation)}  # b-g, b-r, g-
                 )
                 + "\n"
             )
-    fmt_line = "" if profile.format == 1 else "format = 2\n"
+    fmt_line = "" if profile.format == 1 else f"format = {profile.format}\n"
     text = f'''# Sensor profile (sensor_sim.profile): one tactile sensor's frame, gel, optics, markers and noise.
 [sensor]
 {fmt_line}name = {_toml_str(profile.name)}

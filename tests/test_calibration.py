@@ -200,10 +200,12 @@ def test_the_presses_a_light_is_fitted_on_are_true_at_their_centres():
     """Issue 40: the render came to a sharp point at the contact's centre (the few near-vertical normals
     there outvoted by the wide ring of gel outside the contact). Three spread presses of the original
     GelSight rendered where the fit put them: the error within 0.4 contact radii of the centre is at most
-    32 % of the background's there (measured 29.9 %; 34.5 % with every pixel alike)."""
+    32 % of the background's there (measured 29.9 %; 34.5 % with every pixel alike), the sink held at the
+    deepest press."""
     background, presses = _published(SHARED / "gelsight")
     chosen = [presses[i][0] for i in (0, 19, 22)]  # press_00, press_38, press_44 (the developers' three)
     fit = fit_optics(background, [Press(image, BALL_MM) for image in chosen], 0.0295)
+    assert fit.light.sink_max_mm == pytest.approx(max(c.depth_mm for c in fit.contacts), abs=0.01)
     render = PressRender(provisional_profile(background, 0.0295, Elastomer(), fit.light), sphere(2 * BALL_MM))
     ys, xs = np.mgrid[0 : background.shape[0], 0 : background.shape[1]]
     err = base = 0.0

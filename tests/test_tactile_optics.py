@@ -2,6 +2,7 @@
 
 import csv
 import dataclasses
+import math
 import tomllib
 from pathlib import Path
 
@@ -177,8 +178,9 @@ def test_fit_on_four_real_presses_beats_the_background_on_the_fifth():
     assert err[near].mean() < 0.35 * err_bg[near].mean()
 
 
-def _positional(profile):
-    """``profile`` with position and sink terms and correlated noise (format 2 in full)."""
+def _positional(profile, fmt: int = 2):
+    """``profile`` with position and sink terms and correlated noise (format 2 in full; format 3: the
+    sink held at 1.2 mm besides)."""
     light = profile.light
     turn = np.stack([np.stack([0.2 * light.table_bgr[c], -0.1 * light.table_bgr[c]]) for c in range(3)])
     positional = LightModel(
@@ -190,14 +192,15 @@ def _positional(profile):
         sink_bgr=np.array([[5.0, 1.0, -1.0], [-3.0, 0.0, 2.0], [8.0, -2.0, 0.0]], np.float32),
         position_scale_mm=7.0,
         position_range=(-0.8, 0.9, -0.7, 0.6),
+        sink_max_mm=1.2 if fmt >= 3 else math.inf,
     )
     noise = SensorNoise((1.1, 0.7, 0.9), 0.8, (0.3, -0.1, 0.2))
-    return dataclasses.replace(profile, light=positional, noise=noise, format=2)
+    return dataclasses.replace(profile, light=positional, noise=noise, format=fmt)
 
 
-@pytest.mark.parametrize("full", [False, True], ids=["shipped", "position-sink-noise"])
+@pytest.mark.parametrize("full", [False, 2, 3], ids=["shipped", "position-sink-noise", "format-3-sink-held"])
 def test_profile_round_trips(tmp_path, full):
-    profile = _positional(default_profile()) if full else default_profile()
+    profile = _positional(default_profile(), full) if full else default_profile()
     path = save_profile(profile, tmp_path / "mine.toml")
     assert (tmp_path / "mine.png").exists()
     again = load_profile(path)
@@ -222,6 +225,7 @@ def test_profile_round_trips(tmp_path, full):
     if full:
         assert np.abs(back.position_bgr - light.position_bgr).max() <= 6e-4  # 3 decimals, float32
         assert np.array_equal(back.sink_bgr, light.sink_bgr) and back.position_range == light.position_range
+        assert back.sink_max_mm == light.sink_max_mm  # 1.2 (format 3) or inf (format 2: never held)
     assert again.content_hash() == load_profile(save_profile(again, tmp_path / "copy.toml")).content_hash()
     frame = Renderer.from_profile(again, "rgb_markers").render({})
     assert frame.shape == (again.height_px, again.width_px, 3)
@@ -238,7 +242,7 @@ def test_a_profile_written_before_the_position_dependent_light_still_loads_and_r
 @pytest.mark.parametrize(
     "edit, message",
     [
-        (("format = 2", "format = 3"), r"\[sensor\] format 3: this version reads profile formats 1, 2"),
+        (("format = 2", "format = 4"), r"\[sensor\] format 4: this version reads profile formats 1, 2, 3"),
         (
             ("position_order = 1", "position_order = 2"),
             r"\[optics\] position_order must be a finite number in \[0, 1\]",
@@ -253,6 +257,38 @@ def test_a_profile_written_before_the_position_dependent_light_still_loads_and_r
 )
 def test_a_format_2_profile_refuses_bad_values_with_one_line(tmp_path, edit, message):
     _refused_after(save_profile(_positional(default_profile()), tmp_path / "mine.toml"), edit, message)
+
+
+@pytest.mark.parametrize(
+    "edit, message",
+    [
+        (("sink_max_mm = ", "# sink_max_mm = "), r"missing key \[optics\] sink_max_mm"),
+        (("sink_max_mm = ", "sink_max_mm = -1 #"), r"\[optics\] sink_max_mm must be a finite number in"),
+    ],
+)
+def test_a_format_3_profile_needs_its_sink_hold_and_format_2_cannot_hold_it(tmp_path, edit, message):
+    _refused_after(save_profile(_positional(default_profile(), 3), tmp_path / "mine.toml"), edit, message)
+    with pytest.raises(ProfileError, match="format 2 holds no sink_max_mm"):
+        save_profile(dataclasses.replace(_positional(default_profile(), 3), format=2), tmp_path / "two.toml")
+
+
+def test_the_sink_terms_are_held_at_the_deepest_sink_the_light_was_fitted_on():
+    """Deeper than ``sink_max_mm`` the sink's change stays at its value there (a change per mm fitted on
+    0.2 mm presses is not carried to a 0.8 mm one); without it (inf, format 2) it grows with the sink."""
+    light = _positional(default_profile(), 3).light
+    open_light = dataclasses.replace(light, sink_max_mm=math.inf)
+    flat = np.zeros((8, 8), np.float32)
+    background = np.full((8, 8, 3), 100.0, np.float32)
+
+    def change(model, sink_mm):
+        planes = model.frame_planes(background, 7.0, 7.0)
+        return model.change_frame(flat, flat, np.full((8, 8), sink_mm, np.float32), planes)
+
+    assert np.array_equal(change(light, 0.8), change(open_light, 0.8))  # within the fitted sinks: the same
+    assert np.array_equal(change(light, 3.0), change(light, 1.2))
+    assert np.abs(change(open_light, 3.0) - change(light, 3.0)).max() > 5.0
+    with pytest.raises(ValueError, match="sink_max_mm must be > 0"):
+        dataclasses.replace(light, sink_max_mm=float("nan"))
 
 
 def _refused_after(path: Path, edit: tuple[str, str], message: str) -> None:
