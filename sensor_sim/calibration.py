@@ -14,14 +14,15 @@ resolution. The fit alternates:
    position terms (the tables' change across the field) and sink terms (the colour change of
    pressed-in gel), linear in all of them (``light_fit``; the pixels near each contact's centre
    weigh more); the optical blur by best fit over [0, BLUR_MAX_MM] (every pixel alike); the
-   position terms kept only when leaving a press out says they help;
+   tables held linear near the flat normal and the position terms kept only when leaving a
+   press out says they cost nothing / help;
 3. each contact (centre, depth) refined under that light (Gauss–Newton on the rendered press,
    robust weights), then the light once more.
 
 ``result.notes`` names what a person should know: a parameter pinned at a bound of its
 range, a press whose fit stopped at its depth limit. numpy/scipy/cv2 only.
 """
-# Over 400 lines (453): the fit's steps (contacts, light, blur, order, refinement) share one _Fitter's
+# Over 400 lines (456): the fit's steps (contacts, light, blur, order, refinement) share one _Fitter's
 # state and fit_optics runs them in order; the linear light fit and contact finding are apart (light_fit, contact_find).
 
 from __future__ import annotations
@@ -43,6 +44,7 @@ from sensor_sim.light_fit import (
     OrderChoice,
     PressSamples,
     choose_order,
+    crease_choice,
     fit_light_terms,
     held_out_mae,
 )
@@ -157,6 +159,7 @@ class _Fitter:
         self.render = {r: PressRender(profile, sphere(2 * r)) for r in sorted({p.ball_radius_mm for p in presses})}
         self.shade = self.bg / np.asarray(self.reference, np.float32) if shading == "multiplicative" else None
         self.notes: list[str] = []
+        self.crease = 0.0  # the tables' crease penalty near the flat normal (light_fit.crease_choice)
 
     # -- contacts -------------------------------------------------------------------------------
     def pose(self, p: Press, c: Contact) -> Pose:
@@ -238,7 +241,7 @@ class _Fitter:
 
     def light(self, contacts: list[Contact], sinks: list[np.ndarray], blur_mm: float, order: OrderChoice) -> LightModel:
         samples = [self.samples(p, c, s, blur_mm) for p, c, s in zip(self.presses, contacts, sinks)]
-        terms = fit_light_terms(samples, TABLE_BINS, order.order, order.position_ridge)
+        terms = fit_light_terms(samples, TABLE_BINS, order.order, order.position_ridge, self.crease)
         return LightModel(
             terms.table.astype(np.float32),
             float(blur_mm),
@@ -313,7 +316,7 @@ class _Fitter:
         MIN_CHOICE_PRESSES presses; with fewer (two left when one is out: too few to judge a change
         across the field), the terms with the stronger of the ridges, and a note says so."""
         if len(samples) >= MIN_CHOICE_PRESSES:
-            return choose_order(samples, TABLE_BINS)
+            return choose_order(samples, TABLE_BINS, self.crease)
         ridge = max(POSITION_RIDGES)
         self.notes.append(
             f"{len(samples)} presses: too few to check the light's change across the field by leaving one out; "
@@ -429,8 +432,9 @@ def fit_optics(
         contacts = [c if p.given else fitter.refine(light, p, c) for p, c in zip(presses, contacts)]
         sinks = fitter.sinks(contacts)
     blur = fitter.blur(contacts, sinks)
+    samples = [fitter.samples(p, c, s, blur) for p, c, s in zip(presses, contacts, sinks)]
+    fitter.crease = crease_choice(samples, TABLE_BINS)
     if fitter.spread(contacts):
-        samples = [fitter.samples(p, c, s, blur) for p, c, s in zip(presses, contacts, sinks)]
         order = fitter.order(samples)
     else:
         order = order0
