@@ -9,8 +9,9 @@ entries, bilinear in the normal; the position terms times x̃, ỹ; the sink ter
 sink), so all three channels share one design matrix: each press contributes its Gram matrix
 once, any subset of presses is a sum, and leaving a press out costs one solve. Normals the
 presses never showed are filled smoothly (a grid-Laplacian penalty); the flat normal's
-entries are held at 0 (the unpressed gel shows the background). Each pixel counts with its
-press's ``weight`` (least squares weighted; ``PressSamples.weight``, by default 1). numpy/scipy only.
+entries are held at 0 (the unpressed gel shows the background); a crease penalty holds the
+tables linear near it where leaving presses out allows (``crease_choice``). Each pixel counts with
+its ``weight`` (least squares weighted; ``PressSamples.weight``, by default 1). numpy/scipy only.
 """
 
 from __future__ import annotations
