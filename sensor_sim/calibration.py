@@ -22,7 +22,7 @@ resolution. The fit alternates:
 ``result.notes`` names what a person should know: a parameter pinned at a bound of its
 range, a press whose fit stopped at its depth limit. numpy/scipy/cv2 only.
 """
-# Over 400 lines (456): the fit's steps (contacts, light, blur, order, refinement) share one _Fitter's
+# Over 400 lines (457): the fit's steps (contacts, light, blur, order, refinement) share one _Fitter's
 # state and fit_optics runs them in order; the linear light fit and contact finding are apart (light_fit, contact_find).
 
 from __future__ import annotations
