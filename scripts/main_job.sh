@@ -78,15 +78,16 @@ if ((continuing)); then
 fi
 
 # Seconds each stage takes with the defaults on an idle 2-core machine (docs/benchmarks.md, "The main
-# job": 22 s, 1 s, 1 s, 2 min 20 s, 36 s; 3 min 20 s in all, against 3 min 06 s to 3 min 48 s measured
-# there); the estimate scales them by the pace of the stages finished so far (common/eta.py).
+# job": 22 s, 1 s, 1 s, 2 min 20 s, 28 s; 3 min 12 s in all, against 2 min 31 s to 3 min 48 s measured
+# there, sampling in bf16 where the CPU has it); the estimate scales them by the pace of the stages
+# finished so far (common/eta.py).
 nfe=0  # network evaluations per evaluated frame: the settings' step counts added up
 IFS=, read -ra parts <<<"$settings"
 for part in "${parts[@]}"; do
     [[ "${part#*:}" =~ ^[0-9]{1,4}$ ]] && nfe=$((nfe + ${part#*:}))
 done
 collect_s=$(( ((parallel)) && ((${#objects[@]} > 1)) ? 11 * ${#objects[@]} : 16 * ${#objects[@]} ))
-expected="$collect_s,1,1,$(( 20 + steps * batch / 80 )),$(( 15 + eval_frames * nfe / 200 + eval_frames / 25 ))"
+expected="$collect_s,1,1,$(( 20 + steps * batch / 80 )),$(( 15 + eval_frames * nfe / 400 + eval_frames / 25 ))"
 names=("collect ${#objects[@]} objects" "validate" "split" "train" "evaluate")
 start=$SECONDS
 i=0
