@@ -218,7 +218,11 @@ def calibrate(
         if passes_through(exc):
             raise
         _fail(unexpected(exc, "sensor"))
-    model = "table and sink" if fit.order.order == 0 else "table, sink and their change across the field"
+    model = (
+        "table and sink",
+        "table, sink and their change across the field",
+        "table, sink and their change across the field, the sink's quadratic in depth and position",
+    )[fit.order.order]
     typer.echo(
         f"fitted {len(scores)} presses in {fit.seconds:.1f} s: blur {fit.light.blur_mm:g} mm, light: {model} "
         f"(chosen by leaving each press out)"

@@ -22,7 +22,7 @@ resolution. The fit alternates:
 ``result.notes`` names what a person should know: a parameter pinned at a bound of its
 range, a press whose fit stopped at its depth limit. numpy/scipy/cv2 only.
 """
-# Over 400 lines (457): the fit's steps (contacts, light, blur, order, refinement) share one _Fitter's
+# Over 400 lines (460): the fit's steps (contacts, light, blur, order, refinement) share one _Fitter's
 # state and fit_optics runs them in order; the linear light fit and contact finding are apart (light_fit, contact_find).
 
 from __future__ import annotations
@@ -135,6 +135,7 @@ def provisional_profile(background: np.ndarray, mm_per_px: float, gel: Elastomer
         noise=SensorNoise((0.0, 0.0, 0.0)),
         light=light,
         background=background,
+        format=4 if light.quadratic_sink else 3,  # format 4: the quadratic sink field
     )
 
 
@@ -350,7 +351,9 @@ class _Fitter:
         def crop(a):
             return None if a is None else a[:, win[0], win[1]]
 
-        local = FramePlanes(crop(planes.scale), crop(planes.x), crop(planes.y), planes.position, crop(planes.sink))
+        local = FramePlanes(
+            crop(planes.scale), crop(planes.x), crop(planes.y), planes.position, crop(planes.sink), crop(planes.sink2)
+        )
 
         def sink_at(theta: np.ndarray) -> np.ndarray:
             cc = Contact(theta[0], theta[1], c.radius_px, theta[2])

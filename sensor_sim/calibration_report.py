@@ -258,6 +258,7 @@ def profile_from_fit(
         noise=noise,
         light=fit.light,
         background=crop,
+        format=4 if fit.light.quadratic_sink else 3,  # format 4: the quadratic sink field
     )
 
 

@@ -4,6 +4,8 @@ of where on the gel it is, and of how far the gel is pressed in.
 Per channel, at a place (x, y) of the frame with surface normal n and sink s (mm):
 
     change = shade(x, y) · [T(n) + x̃·Tx(n) + ỹ·Ty(n) + s·(k + kx·x̃ + ky·ỹ)]
+             (+ s·(kxx·x̃² + kxy·x̃ỹ + kyy·ỹ²) + s²·(q + qx·x̃ + qy·ỹ + qxx·x̃² + qxy·x̃ỹ + qyy·ỹ²): the
+             quadratic sink field, ``sink_bgr`` of SINK_FIELD_TERMS columns, profiles of format 4)
 
 T, Tx, Ty: smooth lookup tables over the normal (T(flat) = 0); x̃, ỹ: the position from the
 frame's centre over ``position_scale_mm`` (image axes, bounded over the frame); s: the sink, held
@@ -31,6 +33,9 @@ SHADINGS = ("multiplicative", "additive")
 # A camera's response flattens near its ends; frames stay in [1, 254] so a deep press
 # never shows clipped black or saturated colour. Values between the knees are untouched.
 KNEE_LOW, KNEE_HIGH, FLOOR, CEIL = 16.0, 236.0, 1.0, 254.0
+# The sink's terms per channel: 3 (k, kx, ky: linear in the sink and the position) or SINK_FIELD_TERMS
+# (per mm of sink 1, x̃, ỹ, x̃², x̃ỹ, ỹ², then the same per mm² of sink: the centre's colour across the field, issue 40).
+SINK_LINEAR_TERMS, SINK_FIELD_TERMS = 3, 12
 
 
 def soft_bound(img: np.ndarray) -> np.ndarray:
@@ -86,6 +91,7 @@ class FramePlanes:
     y: np.ndarray | None = None
     position: list[list[np.ndarray]] | None = None
     sink: np.ndarray | None = None
+    sink2: np.ndarray | None = None  # the change per mm² of sink (the quadratic sink field), shading included
 
 
 def _lookup_planes(tables: list[np.ndarray], gx: np.ndarray, gy: np.ndarray, bins: int, exact: bool) -> np.ndarray:
@@ -119,7 +125,8 @@ class LightModel:
     background shows how much); "additive" adds the same change everywhere.
     ``blur_mm``: optical blur of the surface slopes (gel scattering, camera focus).
     ``position_bgr`` (3, 2, N, N): per channel, the tables Tx and Ty (change per unit of x̃, ỹ);
-    ``sink_bgr`` (3, 3): per channel, the change per mm of sink: k, kx, ky;
+    ``sink_bgr`` (3, 3): per channel, the change per mm of sink: k, kx, ky; or (3, SINK_FIELD_TERMS): the
+    quadratic sink field (per mm of sink 1, x̃, ỹ, x̃², x̃ỹ, ỹ², then per mm² the same six);
     ``position_scale_mm``: the length that makes x̃, ỹ (> 0 when either is given);
     ``position_range``: (x̃ low, x̃ high, ỹ low, ỹ high) where the presses fitted them were: beyond
     it the position terms stay at its edge (a light fitted in one region is not extrapolated);
@@ -173,8 +180,12 @@ class LightModel:
             object.__setattr__(self, "position_bgr", pos)
         if self.sink_bgr is not None:
             sink = np.asarray(self.sink_bgr, dtype=np.float32)
-            if sink.shape != (3, 3) or not np.all(np.isfinite(sink)) or np.abs(sink).max() > 1000:
-                raise ValueError("sink_bgr must be 3 × 3 finite changes per mm of sink within ±1000 grey levels")
+            ok = sink.ndim == 2 and sink.shape[0] == 3 and sink.shape[1] in (SINK_LINEAR_TERMS, SINK_FIELD_TERMS)
+            if not ok or not np.all(np.isfinite(sink)) or np.abs(sink).max() > 1000:
+                raise ValueError(
+                    f"sink_bgr must be 3 × {SINK_LINEAR_TERMS} (or 3 × {SINK_FIELD_TERMS}) finite changes per mm of "
+                    "sink within ±1000 grey levels"
+                )
             object.__setattr__(self, "sink_bgr", sink)
         positional = self.position_bgr is not None or (self.sink_bgr is not None and np.any(self.sink_bgr[:, 1:]))
         scale = self.position_scale_mm
@@ -216,8 +227,19 @@ class LightModel:
         if self.sink_bgr is not None:
             k = self.sink_bgr
             per_mm = k[:, 0, None, None] + k[:, 1, None, None] * x_tilde + k[:, 2, None, None] * y_tilde
+            if self.quadratic_sink:
+                basis = (x_tilde * x_tilde, x_tilde * y_tilde, y_tilde * y_tilde)
+                per_mm = per_mm + sum(k[:, 3 + j, None, None] * b for j, b in enumerate(basis))
+                per_mm2 = k[:, 6, None, None] + k[:, 7, None, None] * x_tilde + k[:, 8, None, None] * y_tilde
+                per_mm2 = per_mm2 + sum(k[:, 9 + j, None, None] * b for j, b in enumerate(basis))
+                planes.sink2 = np.ascontiguousarray((scale * per_mm2).astype(np.float32))
             planes.sink = np.ascontiguousarray((scale * per_mm).astype(np.float32))
         return planes
+
+    @property
+    def quadratic_sink(self) -> bool:
+        """The sink's terms are the quadratic sink field (SINK_FIELD_TERMS per channel; format 4)."""
+        return self.sink_bgr is not None and self.sink_bgr.shape[1] == SINK_FIELD_TERMS
 
     def change_frame(
         self, gx: np.ndarray, gy: np.ndarray, sink_mm: np.ndarray | None, planes: "FramePlanes", *, exact=False
@@ -238,6 +260,8 @@ class LightModel:
             if math.isfinite(self.sink_max_mm):
                 sink = np.minimum(sink, np.float32(self.sink_max_mm))
             out += planes.sink * sink
+            if planes.sink2 is not None:
+                out += planes.sink2 * (sink * sink)
         np.clip(out, -255.0, 255.0, out=out)
         return out
 

@@ -4,6 +4,10 @@
     fit = fit_light_terms(samples, bins, order=1, ...)       # LightTerms: T, Tx, Ty (tables) and k, kx, ky
     choice = choose_order(samples, bins)                     # by leave-one-press-out error
 
+Order 0: the tables and the sink's k; 1: the tables' gain and turn across the field, the sink's k, kx, ky;
+2: order 1 with the quadratic sink field (the sink's terms quadratic in x̃, ỹ and in the sink: the contact
+centre's colour across the field, issue 40), taken where leaving presses out says it helps.
+
 Per channel the colour change over the shading is linear in every parameter (the tables'
 entries, bilinear in the normal; the position terms times x̃, ỹ; the sink terms times the
 sink), so all three channels share one design matrix: each press contributes its Gram matrix
@@ -24,6 +28,8 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
+from sensor_sim.light import SINK_FIELD_TERMS
+
 SMOOTHING = 1.0  # λ of the tables' Laplacian penalty per 1000 fitted pixels
 # The crease penalty: second differences along nx and along ny through the entries within CREASE_NORMAL of the
 # flat normal, weighted ``crease`` × the Laplacian's: a table linear (C¹, no crease) where normals are near
@@ -31,6 +37,9 @@ SMOOTHING = 1.0  # λ of the tables' Laplacian penalty per 1000 fitted pixels
 # leaving presses out (``crease_choice``).
 CREASE, CREASE_NORMAL = 10.0, 0.2
 POSITION_RIDGES = (1e-3, 1e-2)  # per fitted pixel, on the position gains and turns: chosen by leave-one-out
+# The quadratic sink field (order 2) is tried with the stronger ridge only: with the weaker, leaving presses out
+# scored it worse than order 1 on the original GelSight's spread five (5.65 against 5.58 grey levels; 5.30 with it).
+QUADRATIC_RIDGE = 1e-2
 SINK_RIDGE = 1e-3  # per fitted pixel, on the sink terms (per mm of sink, grey levels)
 
 
@@ -64,7 +73,7 @@ class PressSamples:
 class LightTerms:
     table: np.ndarray  # (3, N, N)
     position: np.ndarray | None  # (3, 2, N, N)
-    sink: np.ndarray  # (3, 3): k, kx, ky per channel
+    sink: np.ndarray  # (3, 3): k, kx, ky per channel; order 2: (3, SINK_FIELD_TERMS), the quadratic sink field
     rms: float  # in-sample RMS residual over the shading (grey levels)
 
 
@@ -183,8 +192,8 @@ def fit_light_terms(
 ) -> LightTerms:
     """Order 0: the table and the sink's k (a linear least squares); order 1: the low-rank position
     terms besides (``fit_low_rank``). ``crease``: the crease penalty's weight (CREASE or 0)."""
-    if order == 1:
-        table, position, sink = fit_low_rank(samples, bins, position_ridge, crease=crease)
+    if order in (1, 2):
+        table, position, sink = fit_low_rank(samples, bins, position_ridge, crease=crease, quadratic=order == 2)
         rss, n = _low_rank_residual(samples, table, position, sink)
         return LightTerms(table, position, sink, math.sqrt(max(rss, 0.0) / (3 * n)))
     design = _Design(bins, crease)
@@ -207,55 +216,83 @@ def rotation_derivative(table: np.ndarray) -> np.ndarray:
     return nx * d_ny - ny * d_nx
 
 
-def _features(A: sp.csr_matrix, s: PressSamples, t_ch: np.ndarray, rt_ch: np.ndarray) -> np.ndarray:
-    """(n, 7) columns of the low-rank position model for one channel: the table's and its rotation's
-    lookups times x̃ and ỹ, then the sink, sink·x̃, sink·ỹ."""
+def sink_basis(s: PressSamples, quadratic: bool) -> np.ndarray:
+    """(n, 3) the sink times 1, x̃, ỹ; ``quadratic``: (n, SINK_FIELD_TERMS), the sink times 1, x̃, ỹ, x̃², x̃ỹ, ỹ²,
+    then the sink² times the same (the columns of ``LightModel.sink_bgr``)."""
+    if not quadratic:
+        return np.stack([s.sink, s.sink * s.x, s.sink * s.y], axis=1)
+    field = np.stack([np.ones_like(s.x), s.x, s.y, s.x * s.x, s.x * s.y, s.y * s.y], axis=1)
+    return np.concatenate([field * s.sink[:, None], field * (s.sink * s.sink)[:, None]], axis=1)
+
+
+def _features(
+    A: sp.csr_matrix, s: PressSamples, t_ch: np.ndarray, rt_ch: np.ndarray, quadratic: bool = False
+) -> np.ndarray:
+    """(n, 4 + sink terms) columns of the low-rank position model for one channel: the table's and its
+    rotation's lookups times x̃ and ỹ, then the sink's terms (``sink_basis``)."""
     tv, rv = A @ t_ch, A @ rt_ch
-    return np.stack([tv * s.x, tv * s.y, rv * s.x, rv * s.y, s.sink, s.sink * s.x, s.sink * s.y], axis=1)
+    return np.concatenate([np.stack([tv * s.x, tv * s.y, rv * s.x, rv * s.y], axis=1), sink_basis(s, quadratic)], 1)
 
 
 LOW_RANK_ITERATIONS = 2
 
 
-def fit_low_rank(
-    samples: list[PressSamples], bins: int, ridge: float, base: np.ndarray | None = None, crease: float = 0.0
-):
-    """Tables T plus, per channel, a gain and a turn of T across the field (Tx = gx·T + rx·∂T/∂φ,
-    Ty likewise) and the sink terms k, kx, ky: 7 numbers per channel beside the table, fitted with
-    T in turns (the features of the previous T, which the position tables are made of, so that the
-    model rendered is the one fitted). ``base``: the table-and-sink fit's entries to start from.
-    Returns (table (3, N, N), position (3, 2, N, N), sink (3, 3))."""
+def table_factor(samples: list[PressSamples], bins: int, crease: float = 0.0):
+    """The LU factor of the tables' regularised normal matrix over ``samples`` (``fit_low_rank``'s; made once
+    per set of presses when several models are fitted to it)."""
     design = _Design(bins, crease)
     A_T = [design.tables_of(design.matrix(s)) for s in samples]
-    n = sum(s.n for s in samples)
     G = A_T[0].T @ sp.diags(samples[0].weights) @ A_T[0]
     for a, smp in zip(A_T[1:], samples[1:]):
         G = G + a.T @ sp.diags(smp.weights) @ a
-    reg = design.regulariser(n)[: design.table_cols, : design.table_cols]
-    lu = splu((G + reg).tocsc())
+    reg = design.regulariser(sum(s.n for s in samples))[: design.table_cols, : design.table_cols]
+    return splu((G + reg).tocsc())
+
+
+def fit_low_rank(
+    samples: list[PressSamples],
+    bins: int,
+    ridge: float,
+    base: np.ndarray | None = None,
+    crease: float = 0.0,
+    quadratic: bool = False,
+    lu=None,
+):
+    """Tables T plus, per channel, a gain and a turn of T across the field (Tx = gx·T + rx·∂T/∂φ,
+    Ty likewise) and the sink terms k, kx, ky (``quadratic``: the SINK_FIELD_TERMS of the quadratic sink
+    field): 7 (16) numbers per channel beside the table, fitted with
+    T in turns (the features of the previous T, which the position tables are made of, so that the
+    model rendered is the one fitted). ``base``: the table-and-sink fit's entries to start from; ``lu``:
+    ``table_factor`` of the same samples (it depends on neither the ridge nor the sink's terms).
+    Returns (table (3, N, N), position (3, 2, N, N), sink (3, 3) or (3, SINK_FIELD_TERMS))."""
+    design = _Design(bins, crease)
+    m = 4 + (SINK_FIELD_TERMS if quadratic else 3)
+    A_T = [design.tables_of(design.matrix(s)) for s in samples]
+    n = sum(s.n for s in samples)
+    lu = lu or table_factor(samples, bins, crease)
     if base is None:
         base = _solve(design, [_normal(design, smp) for smp in samples])[:, : design.table_cols]
     table = np.array(base, dtype=np.float64)
-    beta = np.zeros((3, 7))
+    beta = np.zeros((3, m))
     position = np.zeros((3, 2, bins * bins))
     for _ in range(LOW_RANK_ITERATIONS):
         full = np.zeros((3, bins * bins))
         full[:, design.keep] = table
         rot = rotation_derivative(full.reshape(3, bins, bins)).reshape(3, -1)[:, design.keep]
         for ch in range(3):
-            GTF = np.zeros((design.table_cols, 7))
-            GFF = np.zeros((7, 7))
+            GTF = np.zeros((design.table_cols, m))
+            GFF = np.zeros((m, m))
             bT = np.zeros(design.table_cols)
-            bF = np.zeros(7)
+            bF = np.zeros(m)
             for a, smp in zip(A_T, samples):
-                F = _features(a, smp, table[ch], rot[ch])
+                F = _features(a, smp, table[ch], rot[ch], quadratic)
                 y = smp.target[:, ch] / smp.shade[:, ch]
                 wF, wy = F * smp.weights[:, None], y * smp.weights
                 GTF += np.asarray(a.T @ wF)
                 GFF += F.T @ wF
                 bT += a.T @ wy
                 bF += F.T @ wy
-            GFF += np.eye(7) * (ridge * n)
+            GFF += np.eye(m) * (ridge * n)
             # Schur complement: (GFF - GTFᵀ (G+R)⁻¹ GTF) β = bF - GTFᵀ (G+R)⁻¹ bT
             inv_bT = lu.solve(bT)
             inv_GTF = lu.solve(np.ascontiguousarray(GTF))
@@ -275,11 +312,12 @@ def fit_low_rank(
 def _low_rank_change(s: PressSamples, table, position, sink) -> np.ndarray:
     """(n, 3) change over the shading that a low-rank fit predicts at the samples."""
     out = np.empty((s.n, 3))
+    basis = sink_basis(s, sink.shape[1] == SINK_FIELD_TERMS)
     for ch in range(3):
         t = (table[ch].ravel()[s.idx] * s.w).sum(axis=1)
         tx = (position[ch, 0].ravel()[s.idx] * s.w).sum(axis=1)
         ty = (position[ch, 1].ravel()[s.idx] * s.w).sum(axis=1)
-        out[:, ch] = t + s.x * tx + s.y * ty + s.sink * (sink[ch, 0] + sink[ch, 1] * s.x + sink[ch, 2] * s.y)
+        out[:, ch] = t + s.x * tx + s.y * ty + basis @ sink[ch]
     return out
 
 
@@ -319,8 +357,9 @@ class OrderChoice:
 
 def choose_order(samples: list[PressSamples], bins: int, crease: float = 0.0) -> OrderChoice:
     """The model whose terms, fitted on all presses but one, explain the one left out best, over
-    every press: position order 0 (table and sink), or 1 (the low-rank position terms, with one of
-    POSITION_RIDGES): the spatial terms are kept only where the presses' spread supports them.
+    every press: position order 0 (table and sink), 1 (the low-rank position terms, with one of
+    POSITION_RIDGES) or 2 (with the quadratic sink field besides, QUADRATIC_RIDGE): the spatial terms are
+    kept only where the presses' spread supports them.
     Fewer than three presses: order 0."""
     if len(samples) < 3:
         return OrderChoice(0, 0.0, {})
@@ -335,13 +374,18 @@ def choose_order(samples: list[PressSamples], bins: int, crease: float = 0.0) ->
         rss += _residual(part, t)
         n += part.n
     scores[(0, 0.0)] = math.sqrt(max(rss, 0.0) / (3 * n))
-    for ridge in POSITION_RIDGES:
-        rss = n = 0.0
-        for k, held in enumerate(samples):
-            fit = fit_low_rank(samples[:k] + samples[k + 1 :], bins, ridge, base=bases[k], crease=crease)
-            r, m = _low_rank_residual([held], *fit)
-            rss, n = rss + r, n + m
-        scores[(1, ridge)] = math.sqrt(max(rss, 0.0) / (3 * n))
+    candidates = [(1, ridge) for ridge in POSITION_RIDGES] + [(2, QUADRATIC_RIDGE)]
+    rss_of = dict.fromkeys(candidates, 0.0)
+    n = 0.0
+    for k, held in enumerate(samples):
+        rest = samples[:k] + samples[k + 1 :]
+        lu = table_factor(rest, bins, crease)  # the same for every candidate
+        for order, ridge in candidates:
+            fit = fit_low_rank(rest, bins, ridge, base=bases[k], crease=crease, quadratic=order == 2, lu=lu)
+            rss_of[(order, ridge)] += _low_rank_residual([held], *fit)[0]
+        n += held.n
+    for key, rss in rss_of.items():
+        scores[key] = math.sqrt(max(rss, 0.0) / (3 * n))
     best = min(scores, key=lambda key: scores[key])
     return OrderChoice(best[0], best[1], scores)
 

@@ -10,7 +10,9 @@ marker layout for marker kinds and the camera's noise (``SensorNoise``). Every v
 checked on load: a missing key, a NaN or infinity, or a value out of range is a
 ``ProfileError`` naming the file and key.
 
-Formats: ``[sensor] format = 3`` (written since the sink's terms are held at the deepest
+Formats: ``[sensor] format = 4`` (written when the light has the quadratic sink field: ``[optics]
+sink_bgr`` of SINK_FIELD_TERMS numbers per channel; a profile without it is written as format 3);
+``format = 3`` (written since the sink's terms are held at the deepest
 calibration press: ``[optics] sink_max_mm``); ``format = 2`` (the position-dependent light:
 position and sink terms, correlated noise in ``[noise]``; read with the sink never held); a
 file without ``format`` is a profile of format 1 (one normal table, ``[sensor] noise_std`` of
@@ -35,14 +37,14 @@ import numpy as np
 
 from sensor_sim.contact import SensorGeometry
 from sensor_sim.elastomer import Elastomer
-from sensor_sim.light import SHADINGS, LightModel, OpticsSpec
+from sensor_sim.light import SHADINGS, SINK_FIELD_TERMS, LightModel, OpticsSpec
 from sensor_sim.noise import SensorNoise
 
 DEFAULT_PROFILE = Path(__file__).parent / "data" / "gelsight_mini.toml"
 # Shipped profiles that runs may record besides the default: the default before the
 # position-dependent light (format 1), so that runs simulated with it find it again.
 SHIPPED_PROFILES = (DEFAULT_PROFILE, Path(__file__).parent / "data" / "gelsight_mini_format1.toml")
-FORMATS = (1, 2, 3)
+FORMATS = (1, 2, 3, 4)
 
 
 class ProfileError(ValueError):
@@ -121,6 +123,8 @@ class SensorProfile:
                 h.update(b"-" if part is None else np.ascontiguousarray(part, dtype=np.float32).tobytes())
         if self.format >= 3:  # formats 1 and 2 hash as runs recorded them
             h.update(f"|format 3|{_finite_range([light.sink_max_mm])[0]!r}".encode())
+        if self.format >= 4:  # formats 1 to 3 hash as runs recorded them
+            h.update(b"|format 4|")
         return h.hexdigest()
 
     def record(self) -> str:
@@ -225,7 +229,11 @@ def _position_and_sink(path: Path, data: dict, fmt: int, bins: int) -> dict:
     if not float(order).is_integer():
         raise ProfileError(f"{path}: [optics] position_order must be 0 or 1, got {order!r}")
     scale = _number(path, data, "optics", "position_scale_mm", 1e-3, 1000.0)
-    sink = _array(path, data, "optics", "sink_bgr", (3, 3), 1000, " (per channel b g r: k, kx, ky)")
+    raw = data.get("optics", {}).get("sink_bgr") if isinstance(data.get("optics"), dict) else None
+    wide = fmt >= 4 and isinstance(raw, list) and raw and isinstance(raw[0], list) and len(raw[0]) == SINK_FIELD_TERMS
+    shape = (3, SINK_FIELD_TERMS) if wide else (3, 3)
+    what = " (per channel b g r: the quadratic sink field)" if wide else " (per channel b g r: k, kx, ky)"
+    sink = _array(path, data, "optics", "sink_bgr", shape, 1000, what)
     bounds = _array(path, data, "optics", "position_range", (4,), 1e6, " (x~ low, x~ high, y~ low, y~ high)")
     terms = {
         "sink_bgr": sink.astype(np.float32),

@@ -34,6 +34,8 @@ def save_profile(profile: SensorProfile, path: str | Path) -> Path:
         raise ProfileError(f"{path}: a profile of format 1 holds no position or sink terms and no correlated noise")
     if profile.format == 2 and math.isfinite(light.sink_max_mm):
         raise ProfileError(f"{path}: a profile of format 2 holds no sink_max_mm (format 3 does)")
+    if profile.format < 4 and light.quadratic_sink:
+        raise ProfileError(f"{path}: format {profile.format} holds no quadratic sink field (format 4 does)")
     tables = "\n".join(f"table_{c} = {_toml_rows(light.table_bgr[i])}" for i, c in enumerate("bgr"))
     if profile.format == 1:
         noise_line, noise_section, terms = (
@@ -54,7 +56,9 @@ channel_correlation = {_toml_numbers(noise.channel_correlation)}  # b-g, b-r, g-
             f"position_order = {0 if light.position_bgr is None else 1}  # 1: the tables below vary over the field\n"
             f"position_scale_mm = {float(light.position_scale_mm or 1.0)!r}  # x~, y~ = mm from the centre / this\n"
             f"position_range = {_toml_numbers(_finite_range(light.position_range))}  # x~, y~ held within\n"
-            f"sink_bgr = [{', '.join(_toml_numbers(row) for row in sink)}]  # per mm of sink: k, kx, ky per channel\n"
+            f"sink_bgr = [{', '.join(_toml_numbers(row) for row in sink)}]  # per mm of sink: k, kx, ky per channel"
+            + (" (then kxx, kxy, kyy; per mm²: the same six)" if light.quadratic_sink else "")
+            + "\n"
         )
         if profile.format >= 3:
             terms += f"sink_max_mm = {_finite_range([light.sink_max_mm])[0]!r}  # deeper, the sink terms stay at this\n"
