@@ -153,6 +153,7 @@ def calibrate(
     from cli.sensor_inputs import from_folder, from_run
     from common.errors import ToolError
     from sensor_sim.calibration import CalibrationError, fit_optics
+    from sensor_sim.calibration_check import left_out_scores, near_ratio
     from sensor_sim.calibration_report import (
         contact_sheet,
         estimate_noise,
@@ -191,6 +192,7 @@ def calibrate(
         fit = fit_optics(inputs.background, inputs.presses, scale, gel=gel)
         renders = rendered_presses(inputs.background, inputs.presses, fit, scale, gel)
         scores = press_scores(inputs.background, inputs.presses, fit.contacts, renders)
+        left_out = left_out_scores(inputs.background, inputs.presses, fit, scale, gel)
         noise = (
             SensorNoise((noise_std,) * 3)
             if noise_std is not None
@@ -244,8 +246,20 @@ def calibrate(
     typer.echo(f"| **mean** | | | | **{mean[0]:.2f} / {mean[1]:.2f}** | **{mean[2]:.2f} / {mean[3]:.2f}** |")
     typer.echo("")
     typer.echo(f"near the contact: {mean[1] / mean[3]:.0%} of the background-only error (in-sample)")
+    expected = None
+    if left_out:
+        expected = near_ratio(left_out)
+        worst = max(left_out, key=lambda s: s.mae_near / s.background_mae_near)
+        typer.echo(
+            f"expected for a press not fitted: {expected:.0%} of the background-only error near the contact (each "
+            f"press left out in turn, rendered at its fitted contact from the light of the others; worst {worst.name} "
+            f"{worst.mae_near / worst.background_mae_near:.0%}; a pose commanded without its frame scores a few points "
+            "worse)"
+        )
+    else:
+        typer.echo("expected for a press not fitted: not measured (one press: none to leave out; three or more)")
     typer.echo("depth: from each press's contact radius through the contact solver (no force gauge), refined")
-    for line in field_coverage(fit.contacts, inputs.background.shape).lines():
+    for line in field_coverage(fit.contacts, inputs.background.shape).lines(expected):
         typer.echo(line)
     for note in fit.notes:
         typer.secho(f"note: {note}", fg=typer.colors.YELLOW)

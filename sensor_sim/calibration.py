@@ -22,7 +22,7 @@ resolution. The fit alternates:
 ``result.notes`` names what a person should know: a parameter pinned at a bound of its
 range, a press whose fit stopped at its depth limit. numpy/scipy/cv2 only.
 """
-# Over 400 lines (460): the fit's steps (contacts, light, blur, order, refinement) share one _Fitter's
+# Over 400 lines (461): the fit's steps (contacts, light, blur, order, refinement) share one _Fitter's
 # state and fit_optics runs them in order; the linear light fit and contact finding are apart (light_fit, contact_find).
 
 from __future__ import annotations
@@ -101,6 +101,7 @@ class CalibrationResult:
     order: OrderChoice
     notes: list[str] = field(default_factory=list)  # bounds reached, presses to look at
     seconds: float = 0.0
+    crease: float = 0.0  # the tables' crease penalty the fit took (light_fit.crease_choice)
 
 
 def _check(background: np.ndarray, presses: list[Press], mm_per_px: float) -> None:
@@ -446,7 +447,7 @@ def fit_optics(
         contacts = [c if p.given else fitter.refine(light, p, c) for p, c in zip(presses, contacts)]
         sinks = fitter.sinks(contacts)
         light = fitter.light(contacts, sinks, blur, order)
-    return CalibrationResult(light, contacts, order, fitter.notes, time.perf_counter() - t0)
+    return CalibrationResult(light, contacts, order, fitter.notes, time.perf_counter() - t0, fitter.crease)
 
 
 def locate_press(

@@ -149,17 +149,24 @@ class Coverage:
     covered: tuple[str, ...]  # the regions (of a 3 × 3 split of the frame) with a press centre in them
     missing: tuple[str, ...]
 
-    def lines(self) -> list[str]:
-        """What a person reads: where presses are, where they are missing and what that costs."""
+    def lines(self, left_out_ratio: float | None = None) -> list[str]:
+        """What a person reads: where presses are, where they are missing and what that costs: ``left_out_ratio``,
+        this calibration's near error on presses left out (``calibration_check``), else the bench's range."""
         if not self.missing:
             return [f"field coverage: presses in all {len(REGIONS)} regions of the frame"]
+        cost = (
+            f"presses left out of this calibration render at {left_out_ratio:.0%} of the background's error near "
+            "the contact, presses in a region none showed worse still"
+            if left_out_ratio is not None
+            else f"presses spread over the field render at {SPREAD_RATIO} of the background's error, presses in one "
+            f"quadrant only at {ONE_QUADRANT_RATIO} elsewhere (docs/benchmarks.md, the simulated sensor against real "
+            "frames)"
+        )
         return [
             f"field coverage: presses in {len(self.covered)} of {len(REGIONS)} regions ({', '.join(self.covered)}); "
             f"none in {', '.join(self.missing)}",
-            f"  there the light is held at what the nearest presses showed: near the contact, presses spread over "
-            f"the field render at {SPREAD_RATIO} of the background's error, presses in one quadrant only at "
-            f"{ONE_QUADRANT_RATIO} elsewhere (docs/benchmarks.md, the simulated sensor against real frames); "
-            "a press in each missing region closes that gap",
+            f"  there the light is held at what the nearest presses showed: {cost}; a press in each missing region "
+            "closes that gap",
         ]
 
 

@@ -101,6 +101,12 @@ def test_a_sensor_it_has_never_seen(tmp_path):
     )
     assert result.exit_code == 0, result.output
     assert "every contact found automatically" in result.output and "warning" not in result.output
+    # the expected error from leaving each press out (issue 40), not the in-sample figure or a generic range
+    inside = re.search(r"near the contact: (\d+)% of the background-only error \(in-sample\)", result.output)
+    left = re.search(r"expected for a press not fitted: (\d+)% of the background-only error", result.output)
+    assert inside and left, result.output
+    assert int(inside.group(1)) <= int(left.group(1)) < 100
+    assert f"presses left out of this calibration render at {left.group(1)}%" in result.output
     rows = table_rows(result.output)
     assert len(rows) == len(contacts)
     for r, (x, y) in zip(rows, contacts):

@@ -1,16 +1,20 @@
 """Issue 40: the contact centre's colour across the field (the quadratic sink field, light order 2, profile
-format 4)."""
+format 4) and the calibration's expected error measured by leaving its presses out."""
 
 import dataclasses
 
 import numpy as np
 import pytest
 
+from sensor_sim.calibration import Press, fit_optics
+from sensor_sim.calibration_check import left_out_scores, near_ratio
+from sensor_sim.calibration_report import press_scores, rendered_presses
 from sensor_sim.light import SINK_FIELD_TERMS, FramePlanes, LightModel
 from sensor_sim.light_fit import PressSamples, choose_order, fit_light_terms
 from sensor_sim.light_tables import normal_lookup
 from sensor_sim.profile import ProfileError, default_profile, load_profile
 from sensor_sim.profile_save import save_profile
+from tests.test_calibration import BALL_MM, GEL, MM_PER_PX, background, position_light, pressed
 
 PLACES = [(0.0, 0.0), (-0.7, -0.5), (0.7, -0.5), (-0.7, 0.5), (0.7, 0.5), (0.0, 0.6)]  # x~, y~ of each press
 
@@ -98,3 +102,23 @@ def test_a_profile_with_the_quadratic_sink_field_is_format_4_and_reads_back(tmp_
     assert back.content_hash() == profile.content_hash() != dataclasses.replace(profile, format=3).content_hash()
     # the shipped profiles (formats 1 and 2) read as before, with the hashes runs recorded
     assert base.content_hash() == "f8edd53ab51690039dfafb1bb1e17db9331b88ef3a7a9f8cc1275dccb8b126ee"
+
+
+def test_the_expected_error_comes_from_leaving_the_presses_out():
+    """Four presses over a synthetic field: each left out and rendered from the others' light scores worse
+    than in-sample (what the log printed before), and the figure follows the set given."""
+    bg = background()
+    from objects.indenters import sphere
+    from sensor_sim.calibration import provisional_profile
+    from sensor_sim.press_render import PressRender
+
+    truth = PressRender(provisional_profile(bg, MM_PER_PX, GEL, position_light(bg)), sphere(2 * BALL_MM))
+    rng = np.random.default_rng(4)
+    places = [(160.3, 120.6, 0.7), (60.8, 55.2, 0.6), (262.1, 60.7, 0.8), (58.4, 186.9, 0.9)]
+    presses = [Press(pressed(truth, bg, x, y, d, rng), BALL_MM, name=f"p{i}") for i, (x, y, d) in enumerate(places)]
+    fit = fit_optics(bg, presses, MM_PER_PX, gel=GEL)
+    inside = near_ratio(press_scores(bg, presses, fit.contacts, rendered_presses(bg, presses, fit, MM_PER_PX, GEL)))
+    left = left_out_scores(bg, presses, fit, MM_PER_PX, GEL)
+    assert [s.name for s in left] == ["p0", "p1", "p2", "p3"]
+    assert near_ratio(left) > 1.1 * inside, (near_ratio(left), inside)
+    assert left_out_scores(bg, presses[:1], fit, MM_PER_PX, GEL) == []
