@@ -290,13 +290,14 @@ def load_profile(path: str | Path) -> SensorProfile:
             f"{path}: [sensor] background {bg_name!r} is {background.shape[1]}x{background.shape[0]}, "
             f"not the frame's aspect ratio {int(n['sensor.width_px'])}x{int(n['sensor.height_px'])}"
         )
+    terms = _position_and_sink(path, data, fmt, int(bins))  # its ProfileError names the file once
     try:
         light = LightModel(
             table.astype(np.float32),
             float(n["optics.blur_mm"]),
             shading,
             (float(reference[0]), float(reference[1]), float(reference[2])),
-            **_position_and_sink(path, data, fmt, int(bins)),
+            **terms,
         )
     except ValueError as exc:
         raise ProfileError(f"{path}: [optics] {exc}") from None

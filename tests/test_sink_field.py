@@ -100,6 +100,12 @@ def test_a_profile_with_the_quadratic_sink_field_is_format_4_and_reads_back(tmp_
     assert back.format == 4 and back.light.quadratic_sink
     assert np.array_equal(back.light.sink_bgr, sink)
     assert back.content_hash() == profile.content_hash() != dataclasses.replace(profile, format=3).content_hash()
+    # a missing key of the sink's terms is one line naming the file once (it was wrapped twice)
+    path = tmp_path / "field.toml"
+    path.write_text("\n".join(line for line in path.read_text().splitlines() if not line.startswith("sink_max_mm")))
+    with pytest.raises(ProfileError) as info:
+        load_profile(path)
+    assert str(info.value).count(str(path)) == 1 and "missing key [optics] sink_max_mm" in str(info.value)
     # the shipped profiles (formats 1 and 2) read as before, with the hashes runs recorded
     assert base.content_hash() == "f8edd53ab51690039dfafb1bb1e17db9331b88ef3a7a9f8cc1275dccb8b126ee"
 
