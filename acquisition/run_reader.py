@@ -68,11 +68,13 @@ _SOUND_MAX = 256
 now_ns = time.time_ns  # the wall clock the file system's times are compared with (tests set it)
 
 
-def _identity(path: Path) -> tuple[int, ...] | None:
-    """(device, inode, size, mtime, ctime) of ``path``; None when it cannot be read or is not settled."""
+def _identity(f: h5py.File) -> tuple[int, ...] | None:
+    """(device, inode, size, mtime, ctime) of the file ``f`` has open, from its own descriptor (a file
+    renamed over the path meanwhile is not the one asked about); None when the descriptor cannot be
+    had (another HDF5 driver) or the file is not settled."""
     try:
-        st = os.stat(path)
-    except OSError:
+        st = os.fstat(f.id.get_vfd_handle())
+    except (OSError, ValueError, TypeError, RuntimeError):
         return None
     if now_ns() - max(st.st_mtime_ns, st.st_ctime_ns) < SETTLED_S * 1e9:
         return None  # changed too recently: a write in the same timestamp tick would go unseen
@@ -191,7 +193,7 @@ class RunReader:
         """Every frame chunk present, as written and in its place (acquisition/frame_checks.py), read once
         when the run is opened. A run still being written (or whose writer crashed) may end in frames
         not yet committed: those are left out, with a note; damage before them is refused."""
-        before = _identity(self.path) if self.status != "running" else None
+        before = _identity(self.f) if self.status != "running" else None
         if before is not None and _SOUND.get(before) == self.n:  # found sound before, unchanged since
             self._frames_verified = True
             return []
@@ -201,7 +203,7 @@ class RunReader:
             return [f"{S.FRAMES}: {exc}; the file is damaged"]
         self._frames_verified = True
         if not check.bad:
-            if before is not None and _identity(self.path) == before:
+            if before is not None and _identity(self.f) == before:
                 if len(_SOUND) >= _SOUND_MAX:
                     _SOUND.clear()
                 _SOUND[before] = self.n

@@ -58,3 +58,17 @@ def test_a_run_still_being_written_is_checked_every_time(tmp_path, counted):
         with RunReader.open(path) as run:
             assert run.status == "running"
     assert len(counted) == 2
+
+
+def test_the_verdict_belongs_to_the_file_opened_not_to_what_the_path_names_later(tmp_path, counted, monkeypatch):
+    """The memory keys on the open file's own descriptor: a damaged file opened while the path still
+    names a file found sound (renamed over it in between) is read through and refused."""
+    path = write_run(tmp_path / "run.h5")
+    RunReader.open(path).close()  # found sound, remembered
+    damaged = write_run(tmp_path / "other.h5")
+    flip(damaged, chunk_middle(damaged, S.FRAMES, 4))
+    real_open = R.open_swmr_read
+    monkeypatch.setattr(R, "open_swmr_read", lambda _path: real_open(damaged))  # the race, made certain
+    with pytest.raises(RunFileError, match=r"frames\[4\]: checksum mismatch"):
+        RunReader.open(path)
+    assert len(counted) == 2
