@@ -37,6 +37,18 @@ def test_cpu_precision_is_bf16_only_where_the_cpu_has_it_natively(monkeypatch):
     assert P.arithmetic_words(None) == "fp32" and P.arithmetic_words(torch.bfloat16) == "bf16 autocast"
 
 
+def test_validation_samples_run_in_the_arithmetic_the_network_trains_in():
+    """accelerate's mixed_precision → the autocast of the training's validation samples: fp16 training
+    on a GPU samples in fp16 too (it used to fall back to fp32); anything else is refused."""
+    assert P.autocast_dtype("no") is None
+    assert P.autocast_dtype("bf16") == torch.bfloat16
+    assert P.autocast_dtype("fp16") == torch.float16
+    with pytest.raises(ValueError, match="must be no, bf16 or fp16, got 'auto'"):
+        P.autocast_dtype("auto")
+    gpu = torch.device("cuda")
+    assert P.sampling_dtype("fp16", gpu) == torch.float16 and P.sampling_dtype("auto", gpu) is None
+
+
 @pytest.mark.skipif(not P.cpu_has_native_bf16(), reason="no native bf16 here")
 def test_bf16_sampling_gives_the_fp32_frames_to_a_grey_level_or_two():
     """Ten DDIM steps of a briefly trained tiny network from the same noise, in bf16 autocast and in

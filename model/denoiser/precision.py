@@ -48,7 +48,16 @@ def sampling_dtype(choice: str, device: torch.device) -> torch.dtype | None:
         return torch.bfloat16 if training_precision(choice, "cpu") == "bf16" else None
     if choice not in CHOICES:
         raise ValueError(f"mixed_precision must be auto, no, fp16 or bf16, got {choice!r}")
-    return {"bf16": torch.bfloat16, "fp16": torch.float16}.get(choice)
+    return autocast_dtype(choice) if choice != "auto" else None
+
+
+def autocast_dtype(mixed_precision: str) -> torch.dtype | None:
+    """The autocast dtype of accelerate's ``mixed_precision`` ("no", "bf16", "fp16"; None: fp32): what a
+    model trained that way samples its validation frames in."""
+    dtypes = {"no": None, "bf16": torch.bfloat16, "fp16": torch.float16}
+    if mixed_precision not in dtypes:
+        raise ValueError(f"mixed_precision must be no, bf16 or fp16, got {mixed_precision!r}")
+    return dtypes[mixed_precision]
 
 
 def arithmetic_words(dtype: torch.dtype | None) -> str:

@@ -75,9 +75,8 @@ class ValidationSamples(Callback):
     def write(self, trainer: Trainer) -> Path | None:
         if not trainer.is_main:
             return None
-        import torch
-
         from dataset.torch_dataset import uint8_tensor_to_image
+        from model.denoiser.precision import autocast_dtype
         from model.evaluation.figures import samples_figure
         from model.generation.inference import generate_items
 
@@ -93,8 +92,7 @@ class ValidationSamples(Callback):
             sampler="ddim",
             seed=self.seed,
             physics=self.physics,
-            # the arithmetic the network trains in (bf16 on a CPU with it natively: model/denoiser/precision.py)
-            autocast=torch.bfloat16 if trainer.acc.mixed_precision == "bf16" else None,
+            autocast=autocast_dtype(trainer.acc.mixed_precision),  # the arithmetic the network trains in
         )
         path = self.out / "samples" / f"step-{trainer.step:06d}.png"
         path.parent.mkdir(parents=True, exist_ok=True)
