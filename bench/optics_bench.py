@@ -14,7 +14,7 @@ default 3 mm gel, the publisher's 0.0295 mm/px, a 4 mm ball), chosen
   same farthest-point choice inside it), k = 3 and 5;
 - random spread triple #n (the original GelSight): k = 3 presses drawn from all of them
   (``numpy.random.default_rng(0)``), kept only when they pass the calibrator's own spread rule
-  (``_Fitter.spread``: three or more presses whose published centres span at least MIN_SPAN = 40 %
+  (``PressFitter.spread``: three or more presses whose published centres span at least MIN_SPAN = 40 %
   of the frame's width or of its height), five of them (one with --quick),
 
 and render every press the calibration did not see through ``PressRender`` (the simulated rig's

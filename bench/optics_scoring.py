@@ -20,8 +20,9 @@ import cv2
 import numpy as np
 
 from objects.indenters import sphere
-from sensor_sim.calibration import Contact, Press, _Fitter, locate_press, provisional_profile
+from sensor_sim.calibration import Contact, Press, locate_press, provisional_profile
 from sensor_sim.elastomer import Elastomer
+from sensor_sim.press_fitter import PressFitter
 from sensor_sim.press_render import PressRender
 
 MM_PER_PX = 0.0295  # as given by the data's publisher, approximate
@@ -57,10 +58,10 @@ def load(folder: Path) -> Sensor:
 
 class Blind:
     """The frame-blind depths of a sensor's presses (once per press: they do not depend on the light)
-    and the calibrator's spread rule, both through the calibrator's own code (``_Fitter``)."""
+    and the calibrator's spread rule, both through the calibrator's own code (``PressFitter``)."""
 
     def __init__(self, sensor: Sensor, gel: Elastomer):
-        self.fitter = _Fitter(
+        self.fitter = PressFitter(
             sensor.background, [Press(sensor.background, BALL_RADIUS_MM)], MM_PER_PX, gel, "multiplicative"
         )
         self.press = self.fitter.presses[0]

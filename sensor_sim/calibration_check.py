@@ -15,17 +15,12 @@ frame (the bench's frame-blind placement) scores a few points worse. numpy/cv2 o
 from __future__ import annotations
 
 from objects.indenters import sphere
-from sensor_sim.calibration import (
-    MIN_POSITION_PRESSES,
-    CalibrationResult,
-    Press,
-    _Fitter,
-    provisional_profile,
-)
+from sensor_sim.calibration import CalibrationResult
 from sensor_sim.calibration_report import PressScore, press_scores
 from sensor_sim.elastomer import Elastomer
 from sensor_sim.light import LightModel
 from sensor_sim.light_fit import OrderChoice
+from sensor_sim.press_fitter import MIN_POSITION_PRESSES, Press, PressFitter, provisional_profile
 
 
 def left_out_light(
@@ -35,7 +30,7 @@ def left_out_light(
     ``fit`` chose; the position terms dropped (order 0) where the others no longer pass the spread rule."""
     rest = [p for i, p in enumerate(presses) if i != k]
     contacts = [c for i, c in enumerate(fit.contacts) if i != k]
-    fitter = _Fitter(background, rest, mm_per_px, gel, fit.light.shading)
+    fitter = PressFitter(background, rest, mm_per_px, gel, fit.light.shading)
     fitter.crease = fit.crease
     order = fit.order
     if order.order and not (len(rest) >= MIN_POSITION_PRESSES and fitter.spread(contacts)):
