@@ -147,26 +147,14 @@ def calibrate(
     on --sim commands, evaluate and `rig sensor render`."""
     import time
 
-    import cv2
-
     from cli.one_line import passes_through, unexpected
     from cli.sensor_inputs import from_folder, from_run
     from common.errors import ToolError
-    from sensor_sim.calibration import CalibrationError, fit_optics
-    from sensor_sim.calibration_check import left_out_scores, near_ratio
-    from sensor_sim.calibration_report import (
-        contact_sheet,
-        estimate_noise,
-        field_coverage,
-        mean_scores,
-        press_scores,
-        profile_from_fit,
-        rendered_presses,
-    )
+    from sensor_sim.calibration import CalibrationError
+    from sensor_sim.calibration_job import calibrate as calibrate_presses
+    from sensor_sim.calibration_report import mean_scores
     from sensor_sim.elastomer import Elastomer, PhysicsInputError
-    from sensor_sim.noise import SensorNoise
-    from sensor_sim.profile import ProfileError, load_profile
-    from sensor_sim.profile_save import save_profile
+    from sensor_sim.profile import ProfileError
 
     name = name or out.stem
     if not NAME.match(name):
@@ -174,7 +162,6 @@ def calibrate(
     if out.suffix != ".toml":
         _fail(f"--out {out}: expected a file name ending in .toml")
     field = _field(field_mm)
-    sheet = sheet or out.with_name(f"{out.stem}-sheet.png")
     t0 = time.perf_counter()
     try:
         if source.is_dir():
@@ -188,46 +175,29 @@ def calibrate(
             _fail(f"{source}: the frames' scale is unknown: pass --mm-per-px")
         for note in inputs.notes:
             typer.echo(note)
-        gel = Elastomer(E_MPa=gel_modulus_mpa, thickness_mm=gel_thickness_mm)
-        fit = fit_optics(inputs.background, inputs.presses, scale, gel=gel)
-        renders = rendered_presses(inputs.background, inputs.presses, fit, scale, gel)
-        scores = press_scores(inputs.background, inputs.presses, fit.contacts, renders)
-        left_out = left_out_scores(inputs.background, inputs.presses, fit, scale, gel)
-        noise = (
-            SensorNoise((noise_std,) * 3)
-            if noise_std is not None
-            else estimate_noise(inputs.background, inputs.presses, fit.contacts)
-        )
-        profile = profile_from_fit(
+        done = calibrate_presses(
             inputs.background,
-            fit,
+            inputs.presses,
             scale,
+            Elastomer(E_MPa=gel_modulus_mpa, thickness_mm=gel_thickness_mm),
+            out=out,
+            sheet=sheet or out.with_name(f"{out.stem}-sheet.png"),
             name=name,
-            source=f"rig sensor calibrate: {inputs.source}".replace('"', "'"),
-            noise=noise,
-            gel=gel,
-            frame_width_px=frame_px,
+            source=f"rig sensor calibrate: {inputs.source}",
+            noise_std=noise_std,
+            frame_px=frame_px,
             field_mm=field,
         )
-        out.parent.mkdir(parents=True, exist_ok=True)
-        written = save_profile(profile, out)
-        load_profile(written)  # what was written is what every command will read
-        if not cv2.imwrite(str(sheet), contact_sheet(inputs.presses, fit.contacts, renders, scores)):
-            _fail(f"--sheet {sheet}: cannot write the image")
     except (CalibrationError, ProfileError, ToolError, PhysicsInputError, ValueError, OSError) as exc:
         _fail(str(exc))  # a bad run file: RunFileError
     except Exception as exc:  # nothing expected it: still one line, naming its type (cli/one_line.py)
         if passes_through(exc):
             raise
         _fail(unexpected(exc, "sensor"))
-    model = (
-        "table and sink",
-        "table, sink and their change across the field",
-        "table, sink and their change across the field, the sink's quadratic in depth and position",
-    )[fit.order.order]
+    fit, noise, profile = done.fit, done.noise, done.profile
     typer.echo(
-        f"fitted {len(scores)} presses in {fit.seconds:.1f} s: blur {fit.light.blur_mm:g} mm, light: {model} "
-        f"(chosen by leaving each press out)"
+        f"fitted {len(done.scores)} presses in {fit.seconds:.1f} s: blur {fit.light.blur_mm:g} mm, light: "
+        f"{done.model_words} (chosen by leaving each press out)"
     )
     typer.echo(
         f"noise: std {', '.join(f'{v:g}' for v in noise.std_bgr)} (b, g, r), correlation {noise.correlation_px:g} px, "
@@ -236,47 +206,44 @@ def calibrate(
     typer.echo("")
     typer.echo("| press | centre x, y px | radius px | depth mm | fit MAE whole / near | background MAE whole / near |")
     typer.echo("|---|---|---|---|---|---|")
-    for s in scores:
+    for s in done.scores:
         c = s.contact
         typer.echo(
             f"| {s.name} | {c.centre_x_px:.1f}, {c.centre_y_px:.1f} | {c.radius_px:.1f} | {c.depth_mm or 0:.3f} | "
             f"{s.mae:.2f} / {s.mae_near:.2f} | {s.background_mae:.2f} / {s.background_mae_near:.2f} |"
         )
-    mean = mean_scores(scores)
+    mean = mean_scores(done.scores)
     typer.echo(f"| **mean** | | | | **{mean[0]:.2f} / {mean[1]:.2f}** | **{mean[2]:.2f} / {mean[3]:.2f}** |")
     typer.echo("")
     typer.echo(f"near the contact: {mean[1] / mean[3]:.0%} of the background-only error (in-sample)")
-    expected = None
-    if left_out:
-        expected = near_ratio(left_out)
-        worst = max(left_out, key=lambda s: s.mae_near / s.background_mae_near)
+    worst = done.worst_left_out
+    if worst is not None and done.expected is not None:
         typer.echo(
-            f"expected for a press not fitted: {expected:.0%} of the background-only error near the contact (each "
-            f"press left out in turn, rendered at its fitted contact from the light of the others; worst {worst.name} "
-            f"{worst.mae_near / worst.background_mae_near:.0%}; a pose commanded without its frame scores a few points "
-            "worse)"
+            f"expected for a press not fitted: {done.expected:.0%} of the background-only error near the contact "
+            "(each press left out in turn, rendered at its fitted contact from the light of the others; worst "
+            f"{worst.name} {worst.mae_near / worst.background_mae_near:.0%}; a pose commanded without its frame "
+            "scores a few points worse)"
         )
     else:
         typer.echo("expected for a press not fitted: not measured (one press: none to leave out; three or more)")
     typer.echo("depth: from each press's contact radius through the contact solver (no force gauge), refined")
-    for line in field_coverage(fit.contacts, inputs.background.shape).lines(expected):
+    for line in done.coverage.lines(done.expected):
         typer.echo(line)
-    for note in fit.notes:
+    for note in done.notes:
         typer.secho(f"note: {note}", fg=typer.colors.YELLOW)
-    worse = [s.name for s in scores if s.mae_near >= s.background_mae_near]
-    if worse:
+    if done.no_better:
         typer.secho(
-            f"warning: no better than the background near the contact on {', '.join(worse)}: check the contact "
-            "sheet, the ball radius and --mm-per-px",
+            f"warning: no better than the background near the contact on {', '.join(done.no_better)}: check the "
+            "contact sheet, the ball radius and --mm-per-px",
             fg=typer.colors.YELLOW,
         )
     typer.echo(
-        f"profile: {written} (+ {written.with_suffix('.png').name}), {profile.width_px}x{profile.height_px} px over "
-        f"{profile.width_mm:.2f} x {profile.height_mm:.2f} mm"
+        f"profile: {done.written} (+ {done.written.with_suffix('.png').name}), {profile.width_px}x{profile.height_px} "
+        f"px over {profile.width_mm:.2f} x {profile.height_mm:.2f} mm"
     )
-    typer.echo(f"contact sheet: {sheet}")
+    typer.echo(f"contact sheet: {done.sheet}")
     typer.echo(
-        f"use it: rig run-protocol sphere4mm --sim --profile {written}   (total {time.perf_counter() - t0:.1f} s)"
+        f"use it: rig run-protocol sphere4mm --sim --profile {done.written}   (total {time.perf_counter() - t0:.1f} s)"
     )
 
 
