@@ -31,7 +31,12 @@ TIMING_SAMPLES = 6  # fresh gauge arrivals waited for when the period is measure
 TIMING_WINDOW = 40  # newest distinct arrivals the period is the median gap of (those already buffered count)
 EXCHANGES = 5  # round trips timed per axis (and per poll of a polled gauge): their median counts
 MIN_SPEED = 1e-4  # unit/s: a cap below this cannot make a move safe in any useful time
-RATE_WINDOW_SAMPLES = 6  # gauge samples behind a load-rate estimate
+# A load-rate estimate fits the newest gauge samples of the last RATE_SPAN_S (at least RATE_WINDOW_SAMPLES
+# of them) and needs them to span RATE_MIN_SPAN_S: six samples of a 1 kHz gauge span 5 ms, over which its
+# noise alone (±0.03 N) reads ±10-27 N/s, enough to stop a slow press for a load it would never reach.
+RATE_WINDOW_SAMPLES = 6
+RATE_SPAN_S = 0.05
+RATE_MIN_SPAN_S = 0.02
 
 
 @dataclass(frozen=True)
@@ -291,15 +296,29 @@ class Predicted:
 
 
 def load_rate(buffer, bias: np.ndarray, now_s: float, since_s: float = -math.inf) -> np.ndarray | None:
-    """d(wrench)/dt (6,) from the newest gauge samples stamped after ``since_s`` (least
-    squares), None with too few."""
+    """d(wrench)/dt (6,) by least squares over the gauge samples stamped after ``since_s`` in the last
+    RATE_SPAN_S before the newest (at least RATE_WINDOW_SAMPLES of them); None when they are fewer than
+    three, span less than RATE_MIN_SPAN_S (a burst's shared stamps, a move just begun) or the newest is
+    over a second old."""
     if buffer is None:
         return None
-    samples = [s for s in buffer.newest(RATE_WINDOW_SAMPLES) if s.t_s > since_s]
+    n = RATE_WINDOW_SAMPLES
+    samples = buffer.newest(n)
+    while len(samples) == n and samples[-1].t_s - samples[0].t_s < RATE_SPAN_S and samples[0].t_s > since_s:
+        n *= 2  # a fast gauge: more samples to cover the span
+        samples = buffer.newest(n)
+    if samples:
+        cut = max(since_s, samples[-1].t_s - RATE_SPAN_S)
+        window = [s for s in samples if s.t_s > cut]
+        samples = (
+            window
+            if len(window) >= RATE_WINDOW_SAMPLES
+            else [s for s in samples[-RATE_WINDOW_SAMPLES:] if s.t_s > since_s]
+        )
     if len(samples) < 3:
         return None
     t = np.array([s.t_s for s in samples])
-    if t[-1] - t[0] <= 0 or now_s - t[-1] > 1.0:
+    if t[-1] - t[0] < RATE_MIN_SPAN_S or now_s - t[-1] > 1.0:
         return None
     values = np.array([s.as_array() for s in samples]) - bias
     t = t - t.mean()
