@@ -255,6 +255,7 @@ def overlay_green_pixels(driver) -> int:
     )
 
 
+@pytest.mark.realtime  # jogs from the page on a rig served on real time
 def test_marker_flow_arrows_follow_the_shear(browser):
     """Marker sensor: no arrows at rest; pressed and sheared along +x, then along -x, the
     arrows' mean motion is along x and flips sign with the shear."""
@@ -610,6 +611,7 @@ def test_run_browser_marker_flow_against_the_reference(browser, runs_dir):
     screenshot(browser, "run_browser_markers.png")
 
 
+@pytest.mark.realtime  # a stop pressed while the run runs, on real time
 def test_a_protocol_started_from_the_page_ends_interrupted_on_stop(browser, runs_dir):
     """The controller starts a library protocol (on --sim on its own simulated rig, on simulated
     time, as `rig run-protocol --sim`); the progress panel follows it, a jog meanwhile is refused,

@@ -96,6 +96,7 @@ def cli_seconds(tmp: Path) -> float:
     return time.monotonic() - start
 
 
+@pytest.mark.realtime  # its time is compared with the command line's, both on real time
 def test_a_page_started_sim_protocol_runs_on_simulated_time(rgb_console, tmp_path):
     """sphere10mm at 0.4 mm/s is 5 min 08 s of protocol time: from the page it takes about what
     `rig run-protocol --sim` takes, not 5 minutes; the plan and --set are shown and checked first."""

@@ -14,6 +14,7 @@ import urllib.request
 from urllib.parse import quote
 
 import numpy as np
+import pytest
 from test_verified_reads import chunk_middle, flip, write_run
 
 from acquisition import schema as S
@@ -36,6 +37,7 @@ def _error(base: str, path: str, status: int) -> str:
     return json.loads(body)["error"]
 
 
+@pytest.mark.realtime  # a live run read as it grows, on real time
 def test_damaged_and_foreign_files_are_json_errors_and_a_live_run_grows(tmp_path):
     write_run(tmp_path / "good.h5")
     damaged = write_run(tmp_path / "damaged.h5")

@@ -175,6 +175,7 @@ def _phase_names_in_their_bands(browser) -> list[str]:
     return [label["text"] for label in s["labels"]]
 
 
+@pytest.mark.realtime  # a live run is watched as it runs, on real time
 def test_a_page_started_protocol_is_shown_as_it_runs_and_as_it_ended(tmp_path):
     from selenium.webdriver.common.keys import Keys
     from selenium.webdriver.support.ui import Select

@@ -27,6 +27,7 @@ from rig.rig_state import state_path
 from rig.sim.rig_sim import SimulatedRig
 from rig.sim.world import WorldSpec
 
+pytestmark = pytest.mark.realtime  # signals at random moments of real time to commands on real-time rigs
 RIG = str(Path(sys.executable).parent / "rig")
 TRUE_SURFACE = 0.0  # the simulated gel's surface in axis z
 SIGNALS = ("SIGINT", "SIGTERM", "SIGHUP")

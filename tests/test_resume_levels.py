@@ -48,6 +48,7 @@ def level_start(plan: Plan, level: int) -> int:
         ("woven", [(62, "twist", 2)]),
     ],
 )
+@pytest.mark.realtime  # signals at chosen moments of real time
 def test_an_interrupted_level_is_pressed_again_from_its_start(name, stops, tmp_path):
     protocol = fast(name, tmp_path)
     plan = Plan.of(protocol)
