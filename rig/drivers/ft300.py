@@ -177,6 +177,10 @@ class FT300(GaugeBase):
 
         return read_chunk
 
+    def _stream_in_flight(self):
+        link = self.bus.link
+        return link.in_flight if link.has_peer() else None
+
     def _stream_inline(self):
         # Only against an inline-served simulator in this process (a pty on the discrete
         # clock, rig/sim/link.py): hardware, tcp and `rig sim serve`'s clients keep the

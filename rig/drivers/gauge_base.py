@@ -10,7 +10,7 @@ from typing import Any, Callable
 import numpy as np
 
 from rig.clock import Clock
-from rig.drivers.wrench_stream import FrameCutter, Inline, StreamReader, WrenchBuffer
+from rig.drivers.wrench_stream import IN_FLIGHT_WAITS, STREAM_POLL_S, FrameCutter, Inline, StreamReader, WrenchBuffer
 from rig.errors import DeviceTimeout
 from rig.types import Wrench
 
@@ -50,6 +50,25 @@ class GaugeBase:
         """(wait for bytes, take what arrived, bytes in flight) of the open stream, for
         ``StreamReader``'s ``inline``; None: the reader thread alone reads (the default)."""
         return None
+
+    def _stream_in_flight(self) -> Callable[[], int] | None:
+        """Bytes an in-process simulator has sent on the stream that were not read yet (None: none can
+        know, as on hardware); see ``_await_taken``."""
+        return None
+
+    def _await_taken(self) -> None:
+        """On a discrete clock with the reader thread alone reading a simulator in this process: wait
+        (real time, bounded) until it has read what the simulator sent up to this instant. The clock
+        stands still meanwhile, so a starved reader thread cannot leave the newest sample behind
+        simulated time (a gauge "240 ms late" on an idle machine)."""
+        in_flight = self._stream_in_flight()
+        if in_flight is None:
+            return
+        for _ in range(IN_FLIGHT_WAITS):
+            count = self.buffer.total
+            if not in_flight():
+                return
+            self.buffer.wait_beyond(count, STREAM_POLL_S)
 
     def make_sync(self) -> FrameCutter:
         raise NotImplementedError
@@ -114,11 +133,15 @@ class GaugeBase:
         if self._reader is None:
             return Wrench.from_array(self.clock.now(), self._poll_raw())
         self._reader.check()
-        if self._reader.inline and hasattr(self.clock, "add_listener"):
+        if hasattr(self.clock, "add_listener"):
             # A simulated rig on discrete time: what its gauge sent up to this instant is on the
-            # line; take it now, so that the newest sample is this instant's whatever the
-            # reader thread's scheduling (the guard's checks are then the same on every run).
-            self._reader.take_in_flight()
+            # line; take it now (or wait until the reader thread has), so that the newest sample is
+            # this instant's whatever the reader thread's scheduling (the guard's checks are then
+            # the same on every run).
+            if self._reader.inline:
+                self._reader.take_in_flight()
+            else:
+                self._await_taken()
         sample = self.buffer.latest()
         now = self.clock.now()
         if sample is None or now - sample.t_s > self.stale_after_s:

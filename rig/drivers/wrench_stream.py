@@ -129,6 +129,11 @@ class WrenchBuffer:
         with self._cond:
             return self._cond.wait_for(lambda: self.total - after_total >= n, timeout=timeout_s)
 
+    def wait_beyond(self, count: int, timeout_s: float) -> bool:
+        """Block (real time, bounded) until more than ``count`` samples have been pushed in all (``total``)."""
+        with self._cond:
+            return self._cond.wait_for(lambda: self.total > count, timeout=timeout_s)
+
     def wait_after(self, t_s: float, timeout_s: float) -> bool:
         """Block (real time, bounded) until a sample stamped at or after ``t_s`` is here."""
         with self._cond:

@@ -266,6 +266,10 @@ class SerialLink:
             return data
         return self._read_some("read", None)
 
+    def has_peer(self) -> bool:
+        """True when the far end is a simulator in this process (rig/transport/peer.py), inline or not."""
+        return peers.lookup(self.url) is not None
+
     def inline_peer(self) -> bool:
         """True when the far end is a simulator in this process that serves inline (a pty
         on a discrete clock, a non-blocking model: rig/sim/link.py ``SimServer.inline``)."""
