@@ -229,7 +229,7 @@ def calibrate(
     typer.echo("depth: from each press's contact radius through the contact solver (no force gauge), refined")
     for line in done.coverage.lines(done.expected):
         typer.echo(line)
-    for note in done.notes:
+    for note in done.fit.notes:
         typer.secho(f"note: {note}", fg=typer.colors.YELLOW)
     if done.no_better:
         typer.secho(

@@ -14,13 +14,14 @@ frame (the bench's frame-blind placement) scores a few points worse. numpy/cv2 o
 
 from __future__ import annotations
 
-from objects.indenters import sphere
+import dataclasses
+
 from sensor_sim.calibration import CalibrationResult
-from sensor_sim.calibration_report import PressScore, press_scores
+from sensor_sim.calibration_report import PressScore, press_scores, rendered_presses
 from sensor_sim.elastomer import Elastomer
 from sensor_sim.light import LightModel
 from sensor_sim.light_fit import OrderChoice
-from sensor_sim.press_fitter import MIN_POSITION_PRESSES, Press, PressFitter, provisional_profile
+from sensor_sim.press_fitter import MIN_POSITION_PRESSES, Press, PressFitter
 
 
 def left_out_light(
@@ -43,16 +44,16 @@ def left_out_scores(
 ) -> list[PressScore]:
     """Per press, its score (``calibration_report.press_scores``) rendered through the light of the others
     at its fitted contact; [] for a single press (nothing to fit without it)."""
-    from sensor_sim.press_render import PressRender
-
     if len(presses) < 2:
         return []
     scores: list[PressScore] = []
     for k, (press, contact) in enumerate(zip(presses, fit.contacts)):
-        light = left_out_light(background, presses, fit, mm_per_px, gel, k)
-        render = PressRender(provisional_profile(background, mm_per_px, gel, light), sphere(2 * press.ball_radius_mm))
-        pose = render.pose_of_pixel(contact.centre_x_px, contact.centre_y_px, -float(contact.depth_mm or 0.0))
-        scores += press_scores(background, [press], [contact], [render.render(pose)])
+        alone = dataclasses.replace(
+            fit, light=left_out_light(background, presses, fit, mm_per_px, gel, k), contacts=[contact]
+        )
+        scores += press_scores(
+            background, [press], [contact], rendered_presses(background, [press], alone, mm_per_px, gel)
+        )
     return scores
 
 

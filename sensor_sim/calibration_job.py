@@ -11,7 +11,7 @@ written before the fit and its scores are done, and the profile is checked by re
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -49,7 +49,6 @@ class Calibrated:
     written: Path  # the profile TOML (its background PNG beside it)
     sheet: Path
     coverage: Coverage
-    notes: list[str] = field(default_factory=list)
 
     @property
     def model_words(self) -> str:
@@ -115,4 +114,4 @@ def calibrate(
     if not cv2.imwrite(str(sheet), contact_sheet(presses, fit.contacts, renders, scores)):
         raise OSError(f"--sheet {sheet}: cannot write the image")
     coverage = field_coverage(fit.contacts, background.shape)
-    return Calibrated(fit, scores, left_out, noise, profile, written, sheet, coverage, list(fit.notes))
+    return Calibrated(fit, scores, left_out, noise, profile, written, sheet, coverage)
