@@ -64,21 +64,20 @@ def _sum(a: np.ndarray) -> float:
 
 
 def _displacement(kernels: Kernels, precise: bool):
-    """(qx, qy) -> (ux, uy): ``kernels.tangential_displacement`` with both fields in one
-    forward and one inverse transform call (the same numbers: pocketfft transforms each
-    slice alone); an iteration on a protocol's crop is mostly per-call overhead, so the
-    padded input and the spectra live in buffers made once per solve (the same
-    operations in the same order: bit for bit the plain calls, tested)."""
+    """q -> u for stacked fields (2, ny, nx) = (x, y): ``kernels.tangential_displacement``
+    with both fields in one forward and one inverse transform call (the same numbers:
+    pocketfft transforms each slice alone); an iteration on a protocol's crop is mostly
+    per-call overhead, so the padded input and the spectra live in buffers made once per
+    solve (the same operations in the same order: bit for bit the plain calls, tested)."""
     kxx, kyy, kxy = kernels.tangential_hat64 if precise else kernels.tangential_hat
     dtype = np.float64 if precise else np.float32
     shape, ny, nx = kernels.shape, kernels.ny, kernels.nx
     if not direct_transforms():  # another scipy: the public calls
 
-        def plain(qx: np.ndarray, qy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-            f = rfft2_padded(np.stack((qx, qy)).astype(dtype, copy=False), shape)
+        def plain(q: np.ndarray) -> np.ndarray:
+            f = rfft2_padded(q.astype(dtype, copy=False), shape)
             u_hat = np.stack((kxx * f[0] + kxy * f[1], kxy * f[0] + kyy * f[1]))
-            u = irfft2_full(u_hat, shape)[:, :ny, :nx]
-            return u[0].astype(np.float64), u[1].astype(np.float64)
+            return irfft2_full(u_hat, shape)[:, :ny, :nx].astype(np.float64)
 
         return plain
 
@@ -86,9 +85,8 @@ def _displacement(kernels: Kernels, precise: bool):
     u_hat = np.empty((2, *kxx.shape), np.result_type(kxx, np.complex64 if dtype == np.float32 else np.complex128))
     term = np.empty(kxx.shape, u_hat.dtype)
 
-    def apply(qx: np.ndarray, qy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        padded[0, :ny, :nx] = qx  # cast as astype(dtype) casts
-        padded[1, :ny, :nx] = qy
+    def apply(q: np.ndarray) -> np.ndarray:
+        padded[:, :ny, :nx] = q  # cast as astype(dtype) casts
         f = r2c_2d(padded)
         np.multiply(kxx, f[0], out=u_hat[0])
         np.multiply(kxy, f[1], out=term)
@@ -96,8 +94,7 @@ def _displacement(kernels: Kernels, precise: bool):
         np.multiply(kxy, f[0], out=u_hat[1])
         np.multiply(kyy, f[1], out=term)
         np.add(u_hat[1], term, out=u_hat[1])
-        u = c2r_2d(u_hat, shape)[:, :ny, :nx].astype(np.float64)
-        return u[0], u[1]
+        return c2r_2d(u_hat, shape)[:, :ny, :nx].astype(np.float64)
 
     return apply
 
@@ -117,15 +114,17 @@ def solve_tangential(
     q0: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> TangentialSolution:
     """Traction for the imposed tangential motion; stops at ``tol`` (converged), on a
-    stall in float64 or at ``max_iter`` (not converged)."""
+    stall in float64 or at ``max_iter`` (not converged).
+
+    The iteration holds (x, y) pairs stacked, (2, ny, nx): one array operation does both
+    components (on a protocol's crop an iteration is mostly per-call overhead)."""
     cell = kernels.dx * kernels.dy
     xc, yc = center_mm
-    dxf = shift_mm[0] - twist_rad * (Y - yc)
-    dyf = shift_mm[1] + twist_rad * (X - xc)
+    d = np.stack((shift_mm[0] - twist_rad * (Y - yc), shift_mm[1] + twist_rad * (X - xc)))
     bound = mu * p_MPa
     contact = p_MPa > 0
-    zeros = np.zeros_like(p_MPa)
-    if not contact.any() or mu == 0 or (not np.any(dxf[contact]) and not np.any(dyf[contact])):
+    if not contact.any() or mu == 0 or not np.any(d[:, contact]):
+        zeros = np.zeros_like(p_MPa)
         return TangentialSolution(
             zeros,
             zeros.copy(),
@@ -139,35 +138,45 @@ def solve_tangential(
             True,
         )
     step = 1.0 / kernels.tangential_lipschitz
+    # |q| ≤ bound: q·bound/max(|q|, bound), which is q inside the disc and 0 off the contact
+    # (bound 0); the floor keeps 0/0 away where both are zero.
+    floor = np.maximum(bound, 1e-300)
+    mag, scale = np.empty_like(bound), np.empty_like(bound)
 
-    def project(qx, qy):
-        mag = np.hypot(qx, qy)
-        scale = np.where(mag > bound, bound / np.where(mag > 0, mag, 1.0), 1.0)
-        return qx * scale, qy * scale
+    def project(q: np.ndarray) -> np.ndarray:
+        np.hypot(q[0], q[1], out=mag)
+        np.maximum(mag, floor, out=scale)
+        np.divide(bound, scale, out=scale)
+        q *= scale
+        return q
 
     if q0 is not None:
-        qx, qy = project(*q0)
+        q = project(np.stack(q0).astype(np.float64))
     else:
-        qx, qy = project(np.where(contact, dxf, 0.0) * 1e30, np.where(contact, dyf, 0.0) * 1e30)  # full slip guess
-    yx, yy, t = qx, qy, 1.0
+        q = project(np.where(contact, d, 0.0) * 1e30)  # full slip guess
+    y, t = q, 1.0
     residual, it, converged, precise = np.inf, 0, False, False
     stall = StallWatch(STALL_ITERATIONS)
     displacement = _displacement(kernels, precise)
     for it in range(1, max_iter + 1):
-        ux, uy = displacement(yx, yy)
-        nx, ny = project(yx - step * (ux - dxf), yy - step * (uy - dyf))
+        u = displacement(y)
+        u -= d
+        u *= step
+        n = project(np.subtract(y, u, out=u))
+        moved = n - q
         # Gradient-based adaptive restart (O'Donoghue & Candès 2015): drop the momentum
         # when it points uphill; turns FISTA's O(1/k²) into linear convergence here.
         # (np.add.reduce is np.sum without its argument handling: the same pairwise sums)
-        if float(_sum((yx - nx) * (nx - qx) + (yy - ny) * (ny - qy))) > 0:
+        if float(_sum((y - n) * moved)) > 0:
             t = 1.0
         t_new = (1 + np.sqrt(1 + 4 * t * t)) / 2
         w = (t - 1) / t_new
-        change = float(_sum(np.abs(nx - qx) + np.abs(ny - qy)))
-        size = float(_sum(np.abs(nx) + np.abs(ny)))
+        change = float(_sum(np.abs(moved)))
+        size = float(_sum(np.abs(n)))
         residual = change / size if size > 0 else 0.0
-        yx, yy = nx + w * (nx - qx), ny + w * (ny - qy)
-        qx, qy, t = nx, ny, t_new
+        moved *= w
+        y = np.add(n, moved, out=moved)
+        q, t = n, t_new
         if residual < tol:
             converged = True
             break
@@ -177,7 +186,8 @@ def solve_tangential(
             precise = True
             stall.restart(residual, it)
             displacement = _displacement(kernels, precise)
-            yx, yy, t = qx, qy, 1.0  # restart the momentum in double precision
+            y, t = q, 1.0  # restart the momentum in double precision
+    qx, qy = q[0], q[1]
     mag = np.hypot(qx, qy)
     sticking = contact & (mag < bound * (1 - 1e-3))
     fx = float(np.sum(qx)) * cell
