@@ -10,6 +10,12 @@ from rig.sim.link import SimServer
 from rig.sim.world import SimWorld
 
 one_blas_thread()  # as every command does (cli/__init__.py): the simulators in this process run on threads
+if os.environ.get("PYTEST_XDIST_WORKER"):
+    # Several test processes share the cores: torch's default of one thread per core in each of
+    # them oversubscribes them (a 3 s training test took 58 s under four workers). One thread per
+    # worker, in this process (before torch is imported) and in the commands it starts.
+    os.environ.setdefault("OMP_NUM_THREADS", "1")
+    os.environ.setdefault("TACTILE_TORCH_THREADS", "1")
 
 
 # -- tests that run alone -------------------------------------------------------------------------
