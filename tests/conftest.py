@@ -1,7 +1,8 @@
-import fcntl
 import os
+from pathlib import Path
 
 import pytest
+import realtime_priority
 
 from common.blas_threads import one_blas_thread
 from rig.clock import ManualClock, SystemClock
@@ -18,39 +19,33 @@ if os.environ.get("PYTEST_XDIST_WORKER"):
     os.environ.setdefault("TACTILE_TORCH_THREADS", "1")
 
 
-# -- tests that run alone -------------------------------------------------------------------------
-# The suite runs on several processes (pytest-xdist, `-n` in pyproject.toml). A test marked
-# `realtime` asserts what happens at a moment of real time (a signal 50 ms into a command, a stream
-# that must fall silent within 0.2 s), so it runs with no other test running: every other test holds
-# a shared lock on a file of this run while it runs (set-up and teardown included), a realtime test
-# an exclusive one; whoever waits for the exclusive lock holds the turnstile, so that no new test
-# starts meanwhile. Without xdist nothing is locked.
+# -- realtime tests on several processes ---------------------------------------------------------
+# A test marked `realtime` asserts what happens at a moment of real time (a signal 50 ms into a
+# command, a stream that must fall silent within 0.2 s). On several processes (pytest-xdist,
+# `--dist loadgroup`) they all run in one worker, as one group, and from the first of them on the
+# other workers run at the lowest priority (tests/realtime_priority.py). Without xdist nothing changes.
 
 
-def _run_lock_paths(config) -> tuple[str, str] | None:
-    if not os.environ.get("PYTEST_XDIST_WORKER"):
-        return None
-    root = config._tmp_path_factory.getbasetemp().parent  # shared by the run's workers
-    return str(root / "realtime.turnstile"), str(root / "realtime.lock")
+def _workers_folder(config) -> Path:
+    return config._tmp_path_factory.getbasetemp().parent / "workers"  # shared by the run's workers
 
 
-@pytest.hookimpl(hookwrapper=True, tryfirst=True)  # outside pytest-timeout's: waiting is not the test's time
-def pytest_runtest_protocol(item, nextitem):
-    paths = _run_lock_paths(item.config)
-    if paths is None:
-        yield
-        return
-    alone = item.get_closest_marker("realtime") is not None
-    with open(paths[0], "a") as turnstile, open(paths[1], "a") as lock:
-        fcntl.flock(turnstile, fcntl.LOCK_EX)
-        fcntl.flock(lock, fcntl.LOCK_EX if alone else fcntl.LOCK_SH)
-        if not alone:
-            fcntl.flock(turnstile, fcntl.LOCK_UN)
-        try:
-            yield
-        finally:
-            fcntl.flock(lock, fcntl.LOCK_UN)
-            fcntl.flock(turnstile, fcntl.LOCK_UN)
+def pytest_configure(config):
+    if os.environ.get("PYTEST_XDIST_WORKER"):
+        realtime_priority.register_worker(_workers_folder(config))
+
+
+@pytest.hookimpl(tryfirst=True)  # before xdist's, which reads the groups to name the work units
+def pytest_collection_modifyitems(config, items):
+    for item in items:
+        if item.get_closest_marker("realtime") is not None:
+            item.add_marker(pytest.mark.xdist_group(realtime_priority.GROUP))
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_runtest_setup(item):
+    if os.environ.get("PYTEST_XDIST_WORKER") and item.get_closest_marker("realtime") is not None:
+        realtime_priority.lower_other_workers(_workers_folder(item.config))
 
 
 @pytest.fixture(autouse=True)

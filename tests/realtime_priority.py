@@ -1,0 +1,84 @@
+"""Realtime tests first in the CPU, the other test processes after them (Linux scheduling priority).
+
+The suite runs on several processes (pytest-xdist). Tests marked ``realtime`` assert what happens at a
+moment of real time, so a loaded machine must not delay them. They all run in one worker, one after the
+other (one xdist group), and while they run the other workers and everything they started (threads,
+commands, simulators, browsers) are lowered to nice ``OTHERS_NICE``: the kernel then gives the realtime
+test the cores it asks for at once, and the other workers the rest, instead of stopping them.
+
+Only ever raising other processes' nice value needs no privilege (lowering it back would), so the other
+workers stay lowered for the rest of the run; none of their tests asserts real time.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+OTHERS_NICE = 19  # the lowest priority: CFS weight 15 against a default task's 1024
+GROUP = "realtime"  # the xdist group every realtime test joins
+
+
+def register_worker(folder: Path) -> None:
+    """Note this worker's pid in ``folder`` (the run's shared temporary folder)."""
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / f"{os.environ['PYTEST_XDIST_WORKER']}.pid").write_text(str(os.getpid()))
+
+
+def _children() -> dict[int, list[int]]:
+    """Every process's children, from /proc (pid -> child pids)."""
+    tree: dict[int, list[int]] = {}
+    for entry in os.listdir("/proc"):
+        if not entry.isdigit():
+            continue
+        try:
+            stat = Path(f"/proc/{entry}/stat").read_text()
+        except OSError:
+            continue
+        ppid = int(stat.rsplit(")", 1)[1].split()[1])  # after the command name, which may hold spaces
+        tree.setdefault(ppid, []).append(int(entry))
+    return tree
+
+
+def descendants(pid: int, tree: dict[int, list[int]]) -> list[int]:
+    out, todo = [], [pid]
+    while todo:
+        p = todo.pop()
+        out.append(p)
+        todo.extend(tree.get(p, []))
+    return out
+
+
+def lower(pids: list[int], nice: int = OTHERS_NICE) -> int:
+    """Set every thread of ``pids`` to at least ``nice``; the number of threads changed."""
+    changed = 0
+    for pid in pids:
+        try:
+            tids = [int(t) for t in os.listdir(f"/proc/{pid}/task")]
+        except OSError:
+            continue  # ended meanwhile
+        for tid in tids:
+            try:
+                if os.getpriority(os.PRIO_PROCESS, tid) < nice:  # Linux: a thread id names one thread
+                    os.setpriority(os.PRIO_PROCESS, tid, nice)
+                    changed += 1
+            except OSError:
+                continue  # ended meanwhile, or not ours
+    return changed
+
+
+def lower_other_workers(folder: Path) -> int:
+    """Lower every other worker of this run and all it started; the number of threads changed."""
+    me = os.getpid()
+    others = []
+    for path in folder.glob("*.pid"):
+        try:
+            pid = int(path.read_text())
+        except (OSError, ValueError):
+            continue
+        if pid != me:
+            others.append(pid)
+    if not others:
+        return 0
+    tree = _children()
+    return lower([p for pid in others for p in descendants(pid, tree)])
