@@ -30,6 +30,7 @@ def _workers_folder(config) -> Path:
     return config._tmp_path_factory.getbasetemp().parent / "workers"  # shared by the run's workers
 
 
+@pytest.hookimpl(trylast=True)  # after the tmp_path plugin's, which makes the run's folder
 def pytest_configure(config):
     if os.environ.get("PYTEST_XDIST_WORKER"):
         realtime_priority.register_worker(_workers_folder(config))
