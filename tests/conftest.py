@@ -22,12 +22,14 @@ if os.environ.get("PYTEST_XDIST_WORKER"):
 # -- realtime tests on several processes ---------------------------------------------------------
 # A test marked `realtime` asserts what happens at a moment of real time (a signal 50 ms into a
 # command, a stream that must fall silent within 0.2 s). On several processes (pytest-xdist,
-# `--dist loadgroup`) they all run in one worker, as one group, and from the first of them on the
-# other workers run at the lowest priority (tests/realtime_priority.py). Without xdist nothing changes.
+# `--dist loadgroup`) they all run in one worker, and from the first of them on the other workers
+# run at the lowest priority (tests/realtime_priority.py). Without xdist nothing changes.
 
 
 def _workers_folder(config) -> Path:
-    return config._tmp_path_factory.getbasetemp().parent / "workers"  # shared by the run's workers
+    """A folder of this run, shared by the controller and its workers."""
+    base = config._tmp_path_factory.getbasetemp()
+    return (base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base) / "workers"
 
 
 @pytest.hookimpl(trylast=True)  # after the tmp_path plugin's, which makes the run's folder
@@ -36,11 +38,17 @@ def pytest_configure(config):
         realtime_priority.register_worker(_workers_folder(config))
 
 
-@pytest.hookimpl(tryfirst=True)  # before xdist's, which reads the groups to name the work units
+def pytest_xdist_make_scheduler(config, log):
+    if config.getvalue("dist") == "loadgroup":
+        return realtime_priority.RealtimeFirst(config, log, _workers_folder(config))
+    return None
+
+
+@pytest.hookimpl(trylast=True)  # after -m and -k have chosen the tests
 def pytest_collection_modifyitems(config, items):
-    for item in items:
-        if item.get_closest_marker("realtime") is not None:
-            item.add_marker(pytest.mark.xdist_group(realtime_priority.GROUP))
+    if os.environ.get("PYTEST_XDIST_WORKER"):
+        realtime = [item.nodeid for item in items if item.get_closest_marker("realtime") is not None]
+        realtime_priority.write_collected(_workers_folder(config), realtime)
 
 
 @pytest.hookimpl(tryfirst=True)

@@ -5,7 +5,9 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
+from pathlib import Path
 
+import pytest
 import realtime_priority as rp
 
 # a process that starts a child and a thread, then waits on its stdin
@@ -20,6 +22,7 @@ child.wait()
 """
 
 
+@pytest.mark.realtime  # on several processes: in the realtime tests' worker, the one never lowered
 def test_a_worker_and_everything_it_started_are_lowered_and_this_process_is_not(tmp_path, monkeypatch):
     parent = subprocess.Popen([sys.executable, "-c", PARENT], stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
     try:
@@ -45,3 +48,30 @@ def test_descendants_follow_the_process_tree():
     tree = {1: [2, 3], 3: [4], 4: [5], 9: [10]}
     assert sorted(rp.descendants(1, tree)) == [1, 2, 3, 4, 5]
     assert rp.descendants(7, tree) == [7]
+
+
+@pytest.mark.realtime  # its inner run's realtime tests assert real time: this one runs where they would
+def test_on_several_processes_every_realtime_test_runs_in_one_worker(tmp_path):
+    """Two realtime tests of two files, among 40 others, on three workers: one worker runs both
+    (xdist's own grouping is silently lost on pytest 9.2: pytest-dev/pytest-xdist#1386)."""
+    files = ["tests/test_gauges.py", "tests/test_wire_robustness.py"]
+    out = subprocess.run(
+        [sys.executable, "-m", "pytest", "-n", "3", "--dist", "loadgroup", "-v", "-p", "no:cacheprovider", *files],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        cwd=Path(__file__).resolve().parents[1],
+        env={**os.environ, "PYTHONDONTWRITEBYTECODE": "1"},
+    )
+    assert out.returncode == 0, out.stdout[-3000:]
+    workers = {}
+    for line in out.stdout.splitlines():
+        if "PASSED" in line and line.startswith("[gw"):
+            workers[line.split()[-1]] = line.split()[0]
+    realtime = [
+        "tests/test_gauges.py::test_ft300_sensor_that_keeps_streaming_is_a_typed_timeout",
+        "tests/test_wire_robustness.py::test_write_and_flush_complete_while_signals_arrive",
+    ]
+    assert all(r in workers for r in realtime), sorted(workers)
+    assert len({workers[r] for r in realtime}) == 1, {r: workers[r] for r in realtime}
+    assert len(set(workers.values())) >= 2  # the others spread over the workers
