@@ -26,16 +26,20 @@ if os.environ.get("PYTEST_XDIST_WORKER"):
 # run at the lowest priority (tests/realtime_priority.py). Without xdist nothing changes.
 
 
+def _is_worker(config) -> bool:
+    return hasattr(config, "workerinput")  # xdist's own mark of a worker (the environment is inherited)
+
+
 def _workers_folder(config) -> Path:
     """A folder of this run, shared by the controller and its workers."""
     base = config._tmp_path_factory.getbasetemp()
-    return (base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base) / "workers"
+    return (base.parent if _is_worker(config) else base) / "workers"
 
 
 @pytest.hookimpl(trylast=True)  # after the tmp_path plugin's, which makes the run's folder
 def pytest_configure(config):
-    if os.environ.get("PYTEST_XDIST_WORKER"):
-        realtime_priority.register_worker(_workers_folder(config))
+    if _is_worker(config):
+        realtime_priority.register_worker(_workers_folder(config), config.workerinput["workerid"])
 
 
 def pytest_xdist_make_scheduler(config, log):
@@ -46,14 +50,14 @@ def pytest_xdist_make_scheduler(config, log):
 
 @pytest.hookimpl(trylast=True)  # after -m and -k have chosen the tests
 def pytest_collection_modifyitems(config, items):
-    if os.environ.get("PYTEST_XDIST_WORKER"):
+    if _is_worker(config):
         realtime = [item.nodeid for item in items if item.get_closest_marker("realtime") is not None]
-        realtime_priority.write_collected(_workers_folder(config), realtime)
+        realtime_priority.write_collected(_workers_folder(config), config.workerinput["workerid"], realtime)
 
 
 @pytest.hookimpl(tryfirst=True)
 def pytest_runtest_setup(item):
-    if os.environ.get("PYTEST_XDIST_WORKER") and item.get_closest_marker("realtime") is not None:
+    if _is_worker(item.config) and item.get_closest_marker("realtime") is not None:
         realtime_priority.lower_other_workers(_workers_folder(item.config))
 
 

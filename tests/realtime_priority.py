@@ -27,10 +27,10 @@ OTHERS_NICE = 19  # the lowest priority: CFS weight 15 against a default task's 
 UNIT = "realtime"  # the scheduler's name for the unit of every realtime test
 
 
-def register_worker(folder: Path) -> None:
-    """Note this worker's pid in ``folder`` (the run's shared temporary folder)."""
+def register_worker(folder: Path, worker: str) -> None:
+    """Note this worker's pid in ``folder`` (the run's shared temporary folder); ``worker``: its id (gw0...)."""
     folder.mkdir(parents=True, exist_ok=True)
-    (folder / f"{os.environ['PYTEST_XDIST_WORKER']}.pid").write_text(str(os.getpid()))
+    (folder / f"{worker}.pid").write_text(str(os.getpid()))
 
 
 def _children() -> dict[int, list[int]]:
@@ -92,10 +92,10 @@ def lower_other_workers(folder: Path) -> int:
     return lower([p for pid in others for p in descendants(pid, tree)])
 
 
-def write_collected(folder: Path, nodeids: list[str]) -> None:
+def write_collected(folder: Path, worker: str, nodeids: list[str]) -> None:
     """Note the realtime tests this worker collected (before it reports its collection)."""
     folder.mkdir(parents=True, exist_ok=True)
-    path = folder / f"{os.environ['PYTEST_XDIST_WORKER']}.realtime"
+    path = folder / f"{worker}.realtime"
     path.with_suffix(".part").write_text("\n".join(nodeids))
     path.with_suffix(".part").replace(path)
 

@@ -23,13 +23,12 @@ child.wait()
 
 
 @pytest.mark.realtime  # on several processes: in the realtime tests' worker, the one never lowered
-def test_a_worker_and_everything_it_started_are_lowered_and_this_process_is_not(tmp_path, monkeypatch):
+def test_a_worker_and_everything_it_started_are_lowered_and_this_process_is_not(tmp_path):
     parent = subprocess.Popen([sys.executable, "-c", PARENT], stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
     try:
         child = int(parent.stdout.readline())
         (tmp_path / "gw1.pid").write_text(str(parent.pid))
-        monkeypatch.setenv("PYTEST_XDIST_WORKER", "gw0")
-        rp.register_worker(tmp_path)
+        rp.register_worker(tmp_path, "gw0")
         assert (tmp_path / "gw0.pid").read_text() == str(os.getpid())
         mine = os.getpriority(os.PRIO_PROCESS, 0)
         threads = [int(t) for pid in (parent.pid, child) for t in os.listdir(f"/proc/{pid}/task")]
@@ -61,7 +60,7 @@ def test_on_several_processes_every_realtime_test_runs_in_one_worker(tmp_path):
         text=True,
         timeout=300,
         cwd=Path(__file__).resolve().parents[1],
-        env={**os.environ, "PYTHONDONTWRITEBYTECODE": "1"},
+        env={k: v for k, v in os.environ.items() if not k.startswith("PYTEST_XDIST")},  # a run of its own
     )
     assert out.returncode == 0, out.stdout[-3000:]
     workers = {}
