@@ -32,7 +32,7 @@ from sensor_sim.light_fit import (
     fit_light_terms,
     held_out_mae,
 )
-from sensor_sim.light_sink_table import fit_sink_table, residual
+from sensor_sim.light_sink_table import fit_alternating
 from sensor_sim.light_tables import normal_lookup
 from sensor_sim.noise import SensorNoise
 
@@ -203,10 +203,15 @@ class PressFitter:
 
     def light(self, contacts: list[Contact], sinks: list[np.ndarray], blur_mm: float, order: OrderChoice) -> LightModel:
         samples = [self.samples(p, c, s, blur_mm) for p, c, s in zip(self.presses, contacts, sinks)]
-        terms = fit_light_terms(samples, TABLE_BINS, order.order, order.position_ridge, self.crease)
+
+        def fit_terms(fitted: list[PressSamples]):
+            return fit_light_terms(fitted, TABLE_BINS, order.order, order.position_ridge, self.crease)
+
         sink_table = None
         if self.sink_table:
-            sink_table = fit_sink_table(samples, [residual(s, terms) for s in samples], TABLE_BINS, self.crease)
+            terms, sink_table = fit_alternating(samples, fit_terms, TABLE_BINS, self.crease)
+        else:
+            terms = fit_terms(samples)
         return LightModel(
             terms.table.astype(np.float32),
             float(blur_mm),
