@@ -14,8 +14,9 @@ resolution. The fit alternates:
    position terms (the tables' change across the field) and sink terms (the colour change of
    pressed-in gel), linear in all of them (``light_fit``; the pixels near each contact's centre
    weigh more); the optical blur by best fit over [0, BLUR_MAX_MM] (every pixel alike); the
-   tables held linear near the flat normal and the position terms kept only when leaving a
-   press out says they cost nothing / help;
+   tables held linear near the flat normal, the position terms and the sink table (the
+   pressed-in gel's own response to a tilt) kept only when leaving a press out says they cost
+   nothing / help;
 3. each contact (centre, depth) refined under that light (Gauss–Newton on the rendered press,
    robust weights), then the light once more.
 
@@ -35,6 +36,7 @@ from sensor_sim.contact_find import CalibrationError, Contact, find_contact
 from sensor_sim.elastomer import Elastomer
 from sensor_sim.light import LightModel
 from sensor_sim.light_fit import OrderChoice, crease_choice
+from sensor_sim.light_sink_table import sink_table_choice
 from sensor_sim.press_fitter import (
     MIN_POSITION_PRESSES,
     NEAR_RADII,
@@ -69,6 +71,7 @@ class CalibrationResult:
     notes: list[str] = field(default_factory=list)  # bounds reached, presses to look at
     seconds: float = 0.0
     crease: float = 0.0  # the tables' crease penalty the fit took (light_fit.crease_choice)
+    sink_table: bool = False  # whether the light has the sink table (light_sink_table.sink_table_choice)
 
 
 def _check(background: np.ndarray, presses: list[Press], mm_per_px: float) -> None:
@@ -111,6 +114,7 @@ def fit_optics(
     blur = fitter.blur(contacts, sinks)
     samples = [fitter.samples(p, c, s, blur) for p, c, s in zip(presses, contacts, sinks)]
     fitter.crease = crease_choice(samples, TABLE_BINS)
+    fitter.sink_table = sink_table_choice(samples, TABLE_BINS, fitter.crease)
     if fitter.spread(contacts):
         order = fitter.order(samples)
     else:
@@ -120,7 +124,8 @@ def fit_optics(
         contacts = [c if p.given else fitter.refine(light, p, c) for p, c in zip(presses, contacts)]
         sinks = fitter.sinks(contacts)
         light = fitter.light(contacts, sinks, blur, order)
-    return CalibrationResult(light, contacts, order, fitter.notes, time.perf_counter() - t0, fitter.crease)
+    seconds = time.perf_counter() - t0
+    return CalibrationResult(light, contacts, order, fitter.notes, seconds, fitter.crease, fitter.sink_table)
 
 
 def locate_press(

@@ -1,7 +1,7 @@
 """What a calibration may expect on presses it was not fitted on, measured on the presses it was given:
-each press left out in turn, the light fitted on the others (the same contacts, blur, model and crease
-penalty; the model falls back to the table and sink where the others no longer span the field), the press
-rendered through that light at its fitted contact and scored against its frame.
+each press left out in turn, the light fitted on the others (the same contacts, blur, model, crease
+penalty and sink table; the model falls back to the table and sink where the others no longer span the
+field), the press rendered through that light at its fitted contact and scored against its frame.
 
     left = left_out_scores(background, presses, fit, mm_per_px, gel)   # one PressScore per press ([] for one)
     ratio = near_ratio(left)                                           # mean near MAE / the background's
@@ -27,12 +27,13 @@ from sensor_sim.press_fitter import MIN_POSITION_PRESSES, Press, PressFitter
 def left_out_light(
     background, presses: list[Press], fit: CalibrationResult, mm_per_px: float, gel: Elastomer, k: int
 ) -> LightModel:
-    """The light fitted on every press but ``presses[k]``, at the contacts, blur, model and crease penalty
-    ``fit`` chose; the position terms dropped (order 0) where the others no longer pass the spread rule."""
+    """The light fitted on every press but ``presses[k]``, at the contacts, blur, model, crease penalty and
+    sink table ``fit`` chose; the position terms dropped (order 0) where the others no longer pass the spread
+    rule."""
     rest = [p for i, p in enumerate(presses) if i != k]
     contacts = [c for i, c in enumerate(fit.contacts) if i != k]
     fitter = PressFitter(background, rest, mm_per_px, gel, fit.light.shading)
-    fitter.crease = fit.crease
+    fitter.crease, fitter.sink_table = fit.crease, fit.sink_table
     order = fit.order
     if order.order and not (len(rest) >= MIN_POSITION_PRESSES and fitter.spread(contacts)):
         order = OrderChoice(0, 0.0, {})

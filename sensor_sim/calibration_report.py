@@ -265,7 +265,7 @@ def profile_from_fit(
         noise=noise,
         light=fit.light,
         background=crop,
-        format=4 if fit.light.quadratic_sink else 3,  # format 4: the quadratic sink field
+        format=fit.light.profile_format,  # 4: the quadratic sink field; 5: the sink table
     )
 
 

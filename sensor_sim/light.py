@@ -6,6 +6,7 @@ Per channel, at a place (x, y) of the frame with surface normal n and sink s (mm
     change = shade(x, y) · [T(n) + x̃·Tx(n) + ỹ·Ty(n) + s·(k + kx·x̃ + ky·ỹ)]
              (+ s·(kxx·x̃² + kxy·x̃ỹ + kyy·ỹ²) + s²·(q + qx·x̃ + qy·ỹ + qxx·x̃² + qxy·x̃ỹ + qyy·ỹ²): the
              quadratic sink field, ``sink_bgr`` of SINK_FIELD_TERMS columns, profiles of format 4)
+             (+ shade(x, y) · s · U(n): the sink table, ``sink_table_bgr``, profiles of format 5)
 
 T, Tx, Ty: smooth lookup tables over the normal (T(flat) = 0); x̃, ỹ: the position from the
 frame's centre over ``position_scale_mm`` (image axes, bounded over the frame); s: the sink, held
@@ -92,6 +93,7 @@ class FramePlanes:
     position: list[list[np.ndarray]] | None = None
     sink: np.ndarray | None = None
     sink2: np.ndarray | None = None  # the change per mm² of sink (the quadratic sink field), shading included
+    sink_table: list[np.ndarray] | None = None  # each channel's sink table U (per mm of sink; format 5)
 
 
 def _lookup_planes(tables: list[np.ndarray], gx: np.ndarray, gy: np.ndarray, bins: int, exact: bool) -> np.ndarray:
@@ -131,7 +133,10 @@ class LightModel:
     ``position_range``: (x̃ low, x̃ high, ỹ low, ỹ high) where the presses fitted them were: beyond
     it the position terms stay at its edge (a light fitted in one region is not extrapolated);
     ``sink_max_mm``: the deepest sink of those presses: deeper, the sink terms stay at its value
-    (a linear change fitted on shallow presses is not carried to deep ones; inf: not held).
+    (a linear change fitted on shallow presses is not carried to deep ones; inf: not held);
+    ``sink_table_bgr`` (3, N, N): per channel, the change per mm of sink at each normal, U(n) (U(flat) = 0:
+    there the sink terms say it), shaded like T: the pressed-in gel's response to a tilt differs from the
+    unpressed gel's at the same normal (the contact's centre against the gel around it; issue 40).
     """
 
     table_bgr: np.ndarray
@@ -143,6 +148,7 @@ class LightModel:
     position_scale_mm: float = 0.0
     position_range: tuple[float, float, float, float] = (-math.inf, math.inf, -math.inf, math.inf)
     sink_max_mm: float = math.inf
+    sink_table_bgr: np.ndarray | None = None
     _cells: np.ndarray = field(init=False, repr=False, compare=False)  # derived from table_bgr
     _planes: list[np.ndarray] = field(init=False, repr=False, compare=False)  # each channel's table
 
@@ -187,6 +193,14 @@ class LightModel:
                     "sink within ±1000 grey levels"
                 )
             object.__setattr__(self, "sink_bgr", sink)
+        if self.sink_table_bgr is not None:
+            table = np.asarray(self.sink_table_bgr, dtype=np.float32)
+            if table.shape != (3, bins, bins) or not np.all(np.isfinite(table)) or np.abs(table).max() > 1000:
+                raise ValueError(
+                    f"sink_table_bgr must be (3, {bins}, {bins}) finite changes per mm of sink within ±1000 grey "
+                    f"levels, got shape {table.shape}"
+                )
+            object.__setattr__(self, "sink_table_bgr", table)
         positional = self.position_bgr is not None or (self.sink_bgr is not None and np.any(self.sink_bgr[:, 1:]))
         scale = self.position_scale_mm
         if positional and not (np.isfinite(scale) and 0 < scale <= 1000):
@@ -204,7 +218,13 @@ class LightModel:
     @property
     def extended(self) -> bool:
         """Position or sink terms beside the table (a format 2 profile's light)."""
-        return self.position_bgr is not None or self.sink_bgr is not None
+        return self.position_bgr is not None or self.sink_bgr is not None or self.sink_table_bgr is not None
+
+    @property
+    def profile_format(self) -> int:
+        """The profile format a fitted light is written in: 5 with the sink table, 4 with the quadratic sink
+        field, else 3."""
+        return 5 if self.sink_table_bgr is not None else 4 if self.quadratic_sink else 3
 
     def frame_planes(self, background: np.ndarray, width_mm: float, height_mm: float) -> "FramePlanes":
         """What ``change_frame`` multiplies for a frame over ``background`` (H, W, 3) spanning
@@ -234,6 +254,8 @@ class LightModel:
                 per_mm2 = per_mm2 + sum(k[:, 9 + j, None, None] * b for j, b in enumerate(basis))
                 planes.sink2 = np.ascontiguousarray((scale * per_mm2).astype(np.float32))
             planes.sink = np.ascontiguousarray((scale * per_mm).astype(np.float32))
+        if self.sink_table_bgr is not None:
+            planes.sink_table = [np.ascontiguousarray(t) for t in self.sink_table_bgr]
         return planes
 
     @property
@@ -255,13 +277,20 @@ class LightModel:
                 looked = _lookup_planes(tables, gx, gy, self.bins, exact)
                 looked *= weight
                 out += looked
-        if planes.sink is not None and sink_mm is not None:
+        if (planes.sink is not None or planes.sink_table is not None) and sink_mm is not None:
             sink = sink_mm.astype(np.float32, copy=False)
             if math.isfinite(self.sink_max_mm):
                 sink = np.minimum(sink, np.float32(self.sink_max_mm))
-            out += planes.sink * sink
+            if planes.sink is not None:
+                out += planes.sink * sink
             if planes.sink2 is not None:
                 out += planes.sink2 * (sink * sink)
+            if planes.sink_table is not None:
+                looked = _lookup_planes(planes.sink_table, gx, gy, self.bins, exact)
+                if planes.scale is not None:
+                    looked *= planes.scale
+                looked *= sink
+                out += looked
         np.clip(out, -255.0, 255.0, out=out)
         return out
 

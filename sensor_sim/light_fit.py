@@ -14,8 +14,8 @@ sink), so all three channels share one design matrix: each press contributes its
 once, any subset of presses is a sum, and leaving a press out costs one solve. Normals the
 presses never showed are filled smoothly (a grid-Laplacian penalty); the flat normal's
 entries are held at 0 (the unpressed gel shows the background); a crease penalty holds the
-tables linear near it where leaving presses out allows (``crease_choice``). Each pixel counts with
-its ``weight`` (least squares weighted; ``PressSamples.weight``, by default 1). numpy/scipy only.
+tables linear near it where leaving presses out allows (``crease_choice``). Each pixel counts with its
+``weight`` (weighted least squares; by default 1). The sink table (format 5): ``light_sink_table``. numpy/scipy.
 """
 
 from __future__ import annotations
@@ -33,8 +33,7 @@ from sensor_sim.light import SINK_FIELD_TERMS
 SMOOTHING = 1.0  # λ of the tables' Laplacian penalty per 1000 fitted pixels
 # The crease penalty: second differences along nx and along ny through the entries within CREASE_NORMAL of the
 # flat normal, weighted ``crease`` × the Laplacian's: a table linear (C¹, no crease) where normals are near
-# vertical, so the contact's centre shows no pinwheel point (issue 40). The calibration takes CREASE or 0 by
-# leaving presses out (``crease_choice``).
+# vertical, so the contact's centre shows no pinwheel point (issue 40). Taken or not by ``crease_choice``.
 CREASE, CREASE_NORMAL = 10.0, 0.2
 POSITION_RIDGES = (1e-3, 1e-2)  # per fitted pixel, on the position gains and turns: chosen by leave-one-out
 # The quadratic sink field (order 2) is tried with the stronger ridge only: with the weaker, leaving presses out
@@ -47,7 +46,7 @@ SINK_RIDGE = 1e-3  # per fitted pixel, on the sink terms (per mm of sink, grey l
 class PressSamples:
     """One press's fitted pixels: bilinear cells of their normals (idx, w: (n, 4)), position
     (x̃, ỹ), sink (mm), shading (n, 3: the background over the reference; ones if additive), the
-    colour change to explain (n, 3) and which are near the contact."""
+    colour change to explain (n, 3), which are near the contact and which at its centre."""
 
     idx: np.ndarray
     w: np.ndarray
@@ -58,6 +57,7 @@ class PressSamples:
     target: np.ndarray
     near: np.ndarray  # (n,) bool: within 1.5 contact radii (where renders are scored)
     weight: np.ndarray | None = None  # (n,) each pixel's weight in the least squares (mean 1); None: all 1
+    centre: np.ndarray | None = None  # (n,) bool: at the contact's centre (where the sink table is judged)
     matrices: dict = field(default_factory=dict, repr=False)  # design rows per table size, made once
 
     @property

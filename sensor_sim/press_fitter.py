@@ -32,12 +32,14 @@ from sensor_sim.light_fit import (
     fit_light_terms,
     held_out_mae,
 )
+from sensor_sim.light_sink_table import fit_alternating
 from sensor_sim.light_tables import normal_lookup
 from sensor_sim.noise import SensorNoise
 
 TABLE_BINS = 21  # normal grid: 0.1 steps in nx, ny
 FIT_RADII = 3.0  # pixels within this many contact radii of a press enter the fit
 NEAR_RADII = 1.5  # "near the contact": where the blur is chosen (and renders are scored)
+CENTRE_RADII = 0.4  # "the contact's centre" (issue 40's measure): where the sink table is judged
 SAMPLE_STEP = 2  # every second pixel (rows and columns) enters the fit
 # A fitted pixel d contact radii from the centre weighs max(d, CENTRE_WEIGHT_RADII) ** -CENTRE_WEIGHT_POWER
 # (mean 1 per press), so the few pixels of near-vertical normals at the centre are not outvoted by the wide
@@ -91,7 +93,7 @@ def provisional_profile(background: np.ndarray, mm_per_px: float, gel: Elastomer
         noise=SensorNoise((0.0, 0.0, 0.0)),
         light=light,
         background=background,
-        format=4 if light.quadratic_sink else 3,  # format 4: the quadratic sink field
+        format=light.profile_format,  # 4: the quadratic sink field; 5: the sink table
     )
 
 
@@ -117,6 +119,7 @@ class PressFitter:
         self.shade = self.bg / np.asarray(self.reference, np.float32) if shading == "multiplicative" else None
         self.notes: list[str] = []
         self.crease = 0.0  # the tables' crease penalty near the flat normal (light_fit.crease_choice)
+        self.sink_table = False  # whether the light has the sink table (light_sink_table.sink_table_choice)
 
     # -- contacts -------------------------------------------------------------------------------
     def pose(self, p: Press, c: Contact) -> Pose:
@@ -194,11 +197,21 @@ class PressFitter:
         weight = np.maximum(d, CENTRE_WEIGHT_RADII) ** -CENTRE_WEIGHT_POWER if weighted else np.ones_like(d)
         weight /= weight.mean()
         sink_in = s[inside].astype(np.float64)
-        return PressSamples(idx, wt.astype(np.float64), x, y, sink_in, shade, target, d < NEAR_RADII, weight)
+        return PressSamples(
+            idx, wt.astype(np.float64), x, y, sink_in, shade, target, d < NEAR_RADII, weight, centre=d < CENTRE_RADII
+        )
 
     def light(self, contacts: list[Contact], sinks: list[np.ndarray], blur_mm: float, order: OrderChoice) -> LightModel:
         samples = [self.samples(p, c, s, blur_mm) for p, c, s in zip(self.presses, contacts, sinks)]
-        terms = fit_light_terms(samples, TABLE_BINS, order.order, order.position_ridge, self.crease)
+
+        def fit_terms(fitted: list[PressSamples]):
+            return fit_light_terms(fitted, TABLE_BINS, order.order, order.position_ridge, self.crease)
+
+        sink_table = None
+        if self.sink_table:
+            terms, sink_table = fit_alternating(samples, fit_terms, TABLE_BINS, self.crease)
+        else:
+            terms = fit_terms(samples)
         return LightModel(
             terms.table.astype(np.float32),
             float(blur_mm),
@@ -209,6 +222,7 @@ class PressFitter:
             position_scale_mm=self.position_scale_mm,
             position_range=self.position_range(contacts),
             sink_max_mm=max(float(s.sink.max()) for s in samples),
+            sink_table_bgr=None if sink_table is None else sink_table.astype(np.float32),
         )
 
     def blur(self, contacts: list[Contact], sinks: list[np.ndarray]) -> float:
@@ -308,7 +322,13 @@ class PressFitter:
             return None if a is None else a[:, win[0], win[1]]
 
         local = FramePlanes(
-            crop(planes.scale), crop(planes.x), crop(planes.y), planes.position, crop(planes.sink), crop(planes.sink2)
+            crop(planes.scale),
+            crop(planes.x),
+            crop(planes.y),
+            planes.position,
+            crop(planes.sink),
+            crop(planes.sink2),
+            planes.sink_table,
         )
 
         def sink_at(theta: np.ndarray) -> np.ndarray:

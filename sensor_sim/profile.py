@@ -10,8 +10,9 @@ marker layout for marker kinds and the camera's noise (``SensorNoise``). Every v
 checked on load: a missing key, a NaN or infinity, or a value out of range is a
 ``ProfileError`` naming the file and key.
 
-Formats: ``[sensor] format = 4`` (written when the light has the quadratic sink field: ``[optics]
-sink_bgr`` of SINK_FIELD_TERMS numbers per channel; a profile without it is written as format 3);
+Formats: ``[sensor] format = 5`` (written when the light has the sink table: ``[optics] sink_table_b``,
+``_g``, ``_r``, per mm of sink at each normal); ``format = 4`` (written when the light has the quadratic
+sink field: ``[optics] sink_bgr`` of SINK_FIELD_TERMS numbers per channel; without either, format 3);
 ``format = 3`` (written since the sink's terms are held at the deepest
 calibration press: ``[optics] sink_max_mm``); ``format = 2`` (the position-dependent light:
 position and sink terms, correlated noise in ``[noise]``; read with the sink never held); a
@@ -44,7 +45,7 @@ DEFAULT_PROFILE = Path(__file__).parent / "data" / "gelsight_mini.toml"
 # Shipped profiles that runs may record besides the default: the default before the
 # position-dependent light (format 1), so that runs simulated with it find it again.
 SHIPPED_PROFILES = (DEFAULT_PROFILE, Path(__file__).parent / "data" / "gelsight_mini_format1.toml")
-FORMATS = (1, 2, 3, 4)
+FORMATS = (1, 2, 3, 4, 5)
 
 
 class ProfileError(ValueError):
@@ -125,6 +126,9 @@ class SensorProfile:
             h.update(f"|format 3|{_finite_range([light.sink_max_mm])[0]!r}".encode())
         if self.format >= 4:  # formats 1 to 3 hash as runs recorded them
             h.update(b"|format 4|")
+        if self.format >= 5:  # formats 1 to 4 hash as runs recorded them
+            table = light.sink_table_bgr
+            h.update(b"|format 5|" + (b"-" if table is None else np.ascontiguousarray(table, np.float32).tobytes()))
         return h.hexdigest()
 
     def record(self) -> str:
@@ -242,6 +246,9 @@ def _position_and_sink(path: Path, data: dict, fmt: int, bins: int) -> dict:
     }
     if fmt >= 3:
         terms["sink_max_mm"] = float(_number(path, data, "optics", "sink_max_mm", 1e-3, 1e6))
+    if fmt >= 5:
+        tables = [_array(path, data, "optics", f"sink_table_{c}", (bins, bins), 1000, " (table_bins)") for c in "bgr"]
+        terms["sink_table_bgr"] = np.stack(tables).astype(np.float32)
     if order == 1:
         terms["position_bgr"] = np.stack(
             [np.stack([_table(path, data, f"position_{axis}_{c}", bins) for axis in "xy"]) for c in "bgr"]

@@ -36,6 +36,11 @@ def save_profile(profile: SensorProfile, path: str | Path) -> Path:
         raise ProfileError(f"{path}: a profile of format 2 holds no sink_max_mm (format 3 does)")
     if profile.format < 4 and light.quadratic_sink:
         raise ProfileError(f"{path}: format {profile.format} holds no quadratic sink field (format 4 does)")
+    if (profile.format < 5) != (light.sink_table_bgr is None):
+        raise ProfileError(
+            f"{path}: format {profile.format} with{'' if profile.format < 5 else 'out'} a sink table "
+            "(format 5 holds one, formats 1 to 4 none)"
+        )
     tables = "\n".join(f"table_{c} = {_toml_rows(light.table_bgr[i])}" for i, c in enumerate("bgr"))
     if profile.format == 1:
         noise_line, noise_section, terms = (
@@ -62,6 +67,10 @@ channel_correlation = {_toml_numbers(noise.channel_correlation)}  # b-g, b-r, g-
         )
         if profile.format >= 3:
             terms += f"sink_max_mm = {_finite_range([light.sink_max_mm])[0]!r}  # deeper, the sink terms stay at this\n"
+        if light.sink_table_bgr is not None:
+            terms += "# per mm of sink at each normal (the pressed-in gel's own response to a tilt)\n"
+            terms += "\n".join(f"sink_table_{c} = {_toml_rows(light.sink_table_bgr[i])}" for i, c in enumerate("bgr"))
+            terms += "\n"
         if light.position_bgr is not None:
             terms += (
                 "\n".join(

@@ -242,7 +242,7 @@ def test_a_profile_written_before_the_position_dependent_light_still_loads_and_r
 @pytest.mark.parametrize(
     "edit, message",
     [
-        (("format = 2", "format = 5"), r"\[sensor\] format 5: this version reads profile formats 1, 2, 3, 4"),
+        (("format = 2", "format = 6"), r"\[sensor\] format 6: this version reads profile formats 1, 2, 3, 4, 5"),
         (
             ("position_order = 1", "position_order = 2"),
             r"\[optics\] position_order must be a finite number in \[0, 1\]",
