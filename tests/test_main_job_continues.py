@@ -9,6 +9,8 @@ import os
 import re
 import signal
 import subprocess
+import threading
+import time
 from pathlib import Path
 
 import h5py
@@ -70,10 +72,11 @@ def jobs():
 @pytest.mark.timeout(1200, method="signal")
 def test_the_main_job_interrupted_in_each_stage_continues_with_one_command(tmp_path, jobs):
     out = tmp_path / "job"
-    said = []
+    said, notes = [], []  # notes: when each stop's line was read and whether its Ctrl-C was sent
     for banner, pattern, after_s in STOPS:
         job = _job(out)
         jobs.append(job)
+        started = time.monotonic()
         seen = []
         waiting_for = banner
         for line in job.stdout:
@@ -84,13 +87,20 @@ def test_the_main_job_interrupted_in_each_stage_continues_with_one_command(tmp_p
                 waiting_for = pattern
             elif waiting_for == pattern and re.search(pattern, line):
                 break
+        read_s, sent = time.monotonic() - started, False
         try:
             job.wait(timeout=after_s)
         except subprocess.TimeoutExpired:
             os.killpg(job.pid, signal.SIGINT)  # Ctrl-C in the job's terminal
+            sent = True
         rest, _ = job.communicate(timeout=300)
         text = "".join(seen) + rest
         said.append(text)
+        notes.append(
+            f"stop {banner}: its line read {read_s:.1f} s after the job started, Ctrl-C "
+            f"{'sent' if sent else 'not sent: the job had ended'}, exit {job.returncode} "
+            f"{time.monotonic() - started:.1f} s after the start"
+        )
         if job.returncode == 0:
             break  # the stage ended before the Ctrl-C reached it: nothing left to continue
         assert job.returncode == 130, text
@@ -107,4 +117,6 @@ def test_the_main_job_interrupted_in_each_stage_continues_with_one_command(tmp_p
         assert f[S.STATUS][()] == b"complete"
         assert S.SUPERSEDED in f and (f[S.RETAKE][()] > 0).any()  # interrupted mid-level: that level taken again
     later = said[3:] + [text]  # training went on from its checkpoint:
-    assert any("resumed at step" in t for t in later), "\n=====\n".join(t[-1500:] for t in [*said, text])
+    threads = ", ".join(t.name for t in threading.enumerate())
+    why = "\n".join([*notes, f"threads of the test process: {threads}", *(t[-1500:] for t in [*said, text])])
+    assert any("resumed at step" in t for t in later), why
