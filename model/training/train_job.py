@@ -116,7 +116,21 @@ def train(opts: TrainOptions, log: Callable[[str], None]) -> Trained:
             f"process {trainer.acc.process_index} of {trainer.acc.num_processes}: read {len(trainer.read)} of "
             f"{len(trainer.data)} training items (its share of each step's batch)"
         )
-    return Trained(trainer.save(), trainer.is_main)
+    saved = trainer.save()
+    if trainer.acc.num_processes > 1:
+        _leave_process_group(trainer)
+    return Trained(saved, trainer.is_main)
+
+
+def _leave_process_group(trainer) -> None:
+    """Every process done, the process group taken down before the interpreter exits: left to exit,
+    gloo's threads were destroyed while joinable and a process ended in SIGABRT ("terminate called
+    without an active exception") after its checkpoint was written."""
+    import torch.distributed as dist
+
+    trainer.acc.wait_for_everyone()
+    if dist.is_available() and dist.is_initialized():
+        dist.destroy_process_group()
 
 
 def describe(model_cfg, trainer) -> str:
