@@ -52,6 +52,9 @@ def _job(out: Path) -> subprocess.Popen:
         stderr=subprocess.STDOUT,
         text=True,
         start_new_session=True,  # its own process group: Ctrl-C reaches every process of it, as in a terminal
+        # SIGINT's default action, as a terminal's shell gives it: an ignored SIGINT is inherited, and bash
+        # cannot trap a signal ignored on entry (in a CI run the suite's process had it ignored by then)
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
     )
 
 
