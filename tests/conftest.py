@@ -22,8 +22,8 @@ if os.environ.get("PYTEST_XDIST_WORKER"):
 # -- realtime tests on several processes ---------------------------------------------------------
 # A test marked `realtime` asserts what happens at a moment of real time (a signal 50 ms into a
 # command, a stream that must fall silent within 0.2 s). On several processes (pytest-xdist,
-# `--dist loadgroup`) they all run in one worker, and from the first of them on the other workers
-# run at the lowest priority (tests/realtime_priority.py). Without xdist nothing changes.
+# `--dist loadgroup`) they run in two lanes, a worker each, and from the first of them on the other
+# workers run at the lowest priority (tests/realtime_priority.py). Without xdist nothing changes.
 
 
 def _is_worker(config) -> bool:
@@ -57,8 +57,13 @@ def pytest_collection_modifyitems(config, items):
 
 @pytest.hookimpl(tryfirst=True)
 def pytest_runtest_setup(item):
-    if _is_worker(item.config) and item.get_closest_marker("realtime") is not None:
-        realtime_priority.lower_other_workers(_workers_folder(item.config))
+    if not _is_worker(item.config):
+        return
+    folder = _workers_folder(item.config)
+    if item.get_closest_marker("realtime") is not None:
+        realtime_priority.lower_other_workers(folder)
+    elif realtime_priority.runs_a_lane(folder, item.config.workerinput["workerid"]):
+        realtime_priority.lower_myself()  # its lane is done: other lanes may still be running
 
 
 @pytest.fixture(autouse=True)

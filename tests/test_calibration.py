@@ -73,12 +73,19 @@ def pressed(render: PressRender, bg: np.ndarray, x: float, y: float, depth: floa
     return np.clip(frame + rng.normal(0, 1.0, frame.shape), 0, 255).astype(np.uint8)
 
 
+def synthetic_presses(light: LightModel, bg: np.ndarray, places, seed: int) -> tuple[PressRender, list[Press]]:
+    """The truth's renderer for ``light`` (a ball of BALL_MM on GEL) and its presses at ``places``
+    (x px, y px, depth mm), each frame with the camera's noise, named p0, p1, ..."""
+    truth = PressRender(provisional_profile(bg, MM_PER_PX, GEL, light), sphere(2 * BALL_MM))
+    rng = np.random.default_rng(seed)
+    presses = [Press(pressed(truth, bg, x, y, d, rng), BALL_MM, name=f"p{i}") for i, (x, y, d) in enumerate(places)]
+    return truth, presses
+
+
 def test_a_synthetic_sensor_with_position_dependent_lights_is_recovered_from_five_presses():
     bg = background()
-    truth = PressRender(provisional_profile(bg, MM_PER_PX, GEL, position_light(bg)), sphere(2 * BALL_MM))
-    rng = np.random.default_rng(4)
     places = [(160.3, 120.6, 0.7), (60.8, 55.2, 0.6), (262.1, 60.7, 0.8), (58.4, 186.9, 0.9), (258.6, 182.2, 0.65)]
-    presses = [Press(pressed(truth, bg, x, y, d, rng), BALL_MM, name=f"p{i}") for i, (x, y, d) in enumerate(places)]
+    truth, presses = synthetic_presses(position_light(bg), bg, places, 4)
     fit = fit_optics(bg, presses, MM_PER_PX, gel=GEL)
     assert fit.order.order == 1, fit.order  # the position terms: the presses span the field
     for c, (x, y, d) in zip(fit.contacts, places):
@@ -102,10 +109,8 @@ def test_a_synthetic_sensor_with_position_dependent_lights_is_recovered_from_fiv
 
 def test_three_presses_across_the_field_fit_the_position_terms_with_the_stronger_ridge_and_say_so():
     bg = background()
-    truth = PressRender(provisional_profile(bg, MM_PER_PX, GEL, position_light(bg)), sphere(2 * BALL_MM))
-    rng = np.random.default_rng(7)
     places = [(160.0, 120.0, 0.7), (262.0, 170.0, 0.8), (58.0, 165.0, 0.75)]  # across the width, not the height
-    presses = [Press(pressed(truth, bg, x, y, d, rng), BALL_MM) for x, y, d in places]
+    truth, presses = synthetic_presses(position_light(bg), bg, places, 7)
     fit = fit_optics(bg, presses, MM_PER_PX, gel=GEL)
     assert fit.order.order == 1 and fit.light.position_bgr is not None, fit.order
     assert fit.order.position_ridge == max(POSITION_RIDGES)
@@ -121,10 +126,8 @@ def test_three_presses_across_the_field_fit_the_position_terms_with_the_stronger
 
 def test_presses_in_one_corner_keep_the_light_the_same_over_the_field_and_say_where_presses_are_missing():
     bg = background()
-    truth = PressRender(provisional_profile(bg, MM_PER_PX, GEL, position_light(bg)), sphere(2 * BALL_MM))
-    rng = np.random.default_rng(5)
     places = [(50.0, 40.0, 0.7), (90.0, 50.0, 0.6), (65.0, 72.0, 0.8)]
-    presses = [Press(pressed(truth, bg, x, y, d, rng), BALL_MM) for x, y, d in places]
+    truth, presses = synthetic_presses(position_light(bg), bg, places, 5)
     fit = fit_optics(bg, presses, MM_PER_PX, gel=GEL)
     assert fit.order.order == 0 and fit.light.position_bgr is None
     assert any("the light's change across the field needs" in note for note in fit.notes)

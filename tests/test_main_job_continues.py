@@ -15,6 +15,7 @@ from pathlib import Path
 
 import h5py
 import pytest
+from realtime_priority import processes
 
 from acquisition import schema as S
 
@@ -61,20 +62,16 @@ def _job(out: Path) -> subprocess.Popen:
 def _signal_state(pgid: int) -> str:
     """Each process of group ``pgid``: its command and whether SIGINT is blocked, ignored or caught."""
     out = []
-    for entry in os.listdir("/proc"):
-        if not entry.isdigit():
+    for pid, name, _ppid, group in processes():
+        if group != pgid:
             continue
         try:
-            stat = Path(f"/proc/{entry}/stat").read_text()
-            status = Path(f"/proc/{entry}/status").read_text()
+            status = Path(f"/proc/{pid}/status").read_text()
         except OSError:
-            continue
-        if int(stat.rsplit(")", 1)[1].split()[2]) != pgid:
-            continue
+            continue  # ended meanwhile
         masks = dict(line.split(":\t", 1) for line in status.splitlines() if line.startswith("Sig"))
         sigint = [k for k in ("SigBlk", "SigIgn", "SigCgt") if k in masks and int(masks[k], 16) & 2]
-        name = stat[stat.index("(") + 1 : stat.rindex(")")]
-        out.append(f"{entry} {name} SIGINT in {'/'.join(sigint) or 'none (default action)'}")
+        out.append(f"{pid} {name} SIGINT in {'/'.join(sigint) or 'none (default action)'}")
     return "; ".join(out)
 
 

@@ -49,28 +49,65 @@ def test_descendants_follow_the_process_tree():
     assert rp.descendants(7, tree) == [7]
 
 
+def test_lanes_keep_files_whole_and_balance_their_time():
+    ids = {f"tests/{f}::t{i}" for f in ("test_host_signals.py", "test_check_axes.py", "test_new.py") for i in range(3)}
+    one = rp.lanes(ids, 1)
+    assert set(one.values()) == {"realtime-0"} and set(one) == ids
+    two = rp.lanes(ids, 2)
+    assert {two[f"tests/test_check_axes.py::t{i}"] for i in range(3)} == {"realtime-1"}  # whole files
+    assert two["tests/test_host_signals.py::t0"] == "realtime-0"  # the longest file first
+    assert two["tests/test_new.py::t2"] == "realtime-1"  # 103 + 20 s beside 147 s
+
+
+# a test file of the inner run: each test notes its worker and its nice value as it runs
+NOTING = """
+import os
+import pytest
+
+def note(name):
+    with open(os.environ["NOTES"], "a") as f:
+        f.write(f"{os.environ['PYTEST_XDIST_WORKER']} {name} {os.getpriority(os.PRIO_PROCESS, 0)}\\n")
+"""
+
+
 @pytest.mark.realtime  # its inner run's realtime tests assert real time: this one runs where they would
-def test_on_several_processes_every_realtime_test_runs_in_one_worker(tmp_path):
-    """Two realtime tests of two files, among 40 others, on three workers: one worker runs both
-    (xdist's own grouping is silently lost on pytest 9.2: pytest-dev/pytest-xdist#1386)."""
-    files = ["tests/test_gauges.py", "tests/test_wire_robustness.py"]
+def test_on_several_processes_realtime_tests_run_in_two_lanes_never_lowered(tmp_path):
+    """Three files of realtime tests among 40 others, on four workers: each file's realtime tests in
+    one worker, two lanes on two workers, every realtime test at its worker's own priority, and a lane's
+    worker lowered for the other tests it runs after its lane (xdist's own grouping is silently lost
+    on pytest 9.2: pytest-dev/pytest-xdist#1386)."""
+    root = Path(__file__).resolve().parents[1]
+    tests = tmp_path / "tests"
+    tests.mkdir()
+    for name in ("conftest.py", "realtime_priority.py"):
+        (tests / name).write_text((root / "tests" / name).read_text())
+    (tmp_path / "pytest.ini").write_text("[pytest]\nmarkers =\n    realtime: real time\n")
+    for f in ("a", "b", "c"):
+        marked = [f"@pytest.mark.realtime\ndef test_{f}{i}():\n    note('{f}{i}')\n" for i in range(2)]
+        (tests / f"test_rt_{f}.py").write_text(NOTING + "\n".join(marked))
+    plain = [f"def test_plain{i}():\n    note('plain{i}')\n" for i in range(40)]
+    (tests / "test_plain.py").write_text(NOTING + "\n".join(plain))
+    notes = tmp_path / "notes.txt"
+    env = {k: v for k, v in os.environ.items() if not k.startswith("PYTEST_XDIST")}  # a run of its own
+    env.update(NOTES=str(notes), PYTHONPATH=str(root))
     out = subprocess.run(
-        [sys.executable, "-m", "pytest", "-n", "3", "--dist", "loadgroup", "-v", "-p", "no:cacheprovider", *files],
+        [sys.executable, "-m", "pytest", "-n", "4", "--dist", "loadgroup", "-q", "-p", "no:cacheprovider", "tests"],
         capture_output=True,
         text=True,
         timeout=300,
-        cwd=Path(__file__).resolve().parents[1],
-        env={k: v for k, v in os.environ.items() if not k.startswith("PYTEST_XDIST")},  # a run of its own
+        cwd=tmp_path,
+        env=env,
     )
     assert out.returncode == 0, out.stdout[-3000:]
-    workers = {}
-    for line in out.stdout.splitlines():
-        if "PASSED" in line and line.startswith("[gw"):
-            workers[line.split()[-1]] = line.split()[0]
-    realtime = [
-        "tests/test_gauges.py::test_ft300_sensor_that_keeps_streaming_is_a_typed_timeout",
-        "tests/test_wire_robustness.py::test_write_and_flush_complete_while_signals_arrive",
-    ]
-    assert all(r in workers for r in realtime), sorted(workers)
-    assert len({workers[r] for r in realtime}) == 1, {r: workers[r] for r in realtime}
-    assert len(set(workers.values())) >= 2  # the others spread over the workers
+    lines = notes.read_text().splitlines()
+    ran = {name: (worker, int(nice)) for worker, name, nice in (line.split() for line in lines)}
+    assert len(ran) == 46, sorted(ran)
+    mine = os.getpriority(os.PRIO_PROCESS, 0)
+    lane_of = {f: {ran[f"{f}{i}"][0] for i in range(2)} for f in "abc"}
+    assert all(len(workers) == 1 for workers in lane_of.values()), lane_of  # a file's tests in one worker
+    lane_workers = set().union(*lane_of.values())
+    assert len(lane_workers) == 2, lane_of  # two lanes
+    assert all(ran[f"{f}{i}"][1] == mine for f in "abc" for i in range(2)), ran  # never lowered
+    after_lane = [nice for worker, nice in (ran[f"plain{i}"] for i in range(40)) if worker in lane_workers]
+    assert all(nice == rp.OTHERS_NICE for nice in after_lane), ran
+    assert len({worker for worker, _ in ran.values()}) >= 3  # the others spread over the workers

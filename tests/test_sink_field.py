@@ -6,7 +6,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from sensor_sim.calibration import Press, fit_optics
+from sensor_sim.calibration import fit_optics
 from sensor_sim.calibration_check import left_out_scores, near_ratio
 from sensor_sim.calibration_report import press_scores, rendered_presses
 from sensor_sim.light import SINK_FIELD_TERMS, FramePlanes, LightModel
@@ -14,7 +14,7 @@ from sensor_sim.light_fit import PressSamples, choose_order, fit_light_terms
 from sensor_sim.light_tables import normal_lookup
 from sensor_sim.profile import ProfileError, default_profile, load_profile
 from sensor_sim.profile_save import save_profile
-from tests.test_calibration import BALL_MM, GEL, MM_PER_PX, background, position_light, pressed
+from tests.test_calibration import GEL, MM_PER_PX, background, position_light, synthetic_presses
 
 PLACES = [(0.0, 0.0), (-0.7, -0.5), (0.7, -0.5), (-0.7, 0.5), (0.7, 0.5), (0.0, 0.6)]  # x~, y~ of each press
 
@@ -114,14 +114,8 @@ def test_the_expected_error_comes_from_leaving_the_presses_out():
     """Four presses over a synthetic field: each left out and rendered from the others' light scores worse
     than in-sample (what the log printed before), and the figure follows the set given."""
     bg = background()
-    from objects.indenters import sphere
-    from sensor_sim.calibration import provisional_profile
-    from sensor_sim.press_render import PressRender
-
-    truth = PressRender(provisional_profile(bg, MM_PER_PX, GEL, position_light(bg)), sphere(2 * BALL_MM))
-    rng = np.random.default_rng(4)
     places = [(160.3, 120.6, 0.7), (60.8, 55.2, 0.6), (262.1, 60.7, 0.8), (58.4, 186.9, 0.9)]
-    presses = [Press(pressed(truth, bg, x, y, d, rng), BALL_MM, name=f"p{i}") for i, (x, y, d) in enumerate(places)]
+    _truth, presses = synthetic_presses(position_light(bg), bg, places, 4)
     fit = fit_optics(bg, presses, MM_PER_PX, gel=GEL)
     inside = near_ratio(press_scores(bg, presses, fit.contacts, rendered_presses(bg, presses, fit, MM_PER_PX, GEL)))
     left = left_out_scores(bg, presses, fit, MM_PER_PX, GEL)

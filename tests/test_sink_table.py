@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from objects.indenters import sphere
-from sensor_sim.calibration import Press, fit_optics, provisional_profile
+from sensor_sim.calibration import fit_optics, provisional_profile
 from sensor_sim.light import LightModel
 from sensor_sim.light_fit import PressSamples
 from sensor_sim.light_sink_table import sink_table_choice
@@ -15,7 +15,7 @@ from sensor_sim.light_tables import normal_lookup
 from sensor_sim.press_render import PressRender
 from sensor_sim.profile import ProfileError, default_profile, load_profile
 from sensor_sim.profile_save import save_profile
-from tests.test_calibration import BALL_MM, GEL, MM_PER_PX, background, lambertian_table, pressed
+from tests.test_calibration import BALL_MM, GEL, MM_PER_PX, background, lambertian_table, synthetic_presses
 
 GAIN_PER_MM = -0.5  # the truth's tables, pressed in: T(n) · (1 + GAIN_PER_MM · sink)
 
@@ -54,10 +54,8 @@ def test_a_centre_that_answers_a_tilt_more_weakly_is_fitted_with_the_sink_table(
     calibration before the sink table: 2.49): one table over the normal splits the difference between the
     contact's centre and the gel around it."""
     bg = background()
-    truth = PressRender(provisional_profile(bg, MM_PER_PX, GEL, centre_light(bg)), sphere(2 * BALL_MM))
-    rng = np.random.default_rng(11)
     places = [(160.3, 120.6, 1.2), (80.8, 75.2, 1.4), (242.1, 80.7, 1.0), (88.4, 166.9, 1.3)]
-    presses = [Press(pressed(truth, bg, x, y, d, rng), BALL_MM, name=f"p{i}") for i, (x, y, d) in enumerate(places)]
+    truth, presses = synthetic_presses(centre_light(bg), bg, places, 11)
     fit = fit_optics(bg, presses, MM_PER_PX, gel=GEL)
     assert fit.sink_table and fit.light.sink_table_bgr is not None and fit.light.profile_format == 5
     assert np.all(fit.light.sink_table_bgr[:, 10, 10] == 0)  # the flat normal's sink change is the sink terms'
