@@ -51,8 +51,19 @@ def pytest_xdist_make_scheduler(config, log):
 @pytest.hookimpl(trylast=True)  # after -m and -k have chosen the tests
 def pytest_collection_modifyitems(config, items):
     if _is_worker(config):
+        folder, worker = _workers_folder(config), config.workerinput["workerid"]
         realtime = [item.nodeid for item in items if item.get_closest_marker("realtime") is not None]
-        realtime_priority.write_collected(_workers_folder(config), config.workerinput["workerid"], realtime)
+        realtime_priority.write_collected(folder, worker, realtime)
+        shared = [item.nodeid for item in items if _shares_a_fixture(item)]
+        realtime_priority.write_collected(folder, worker, shared, "shared")
+
+
+def _shares_a_fixture(item) -> bool:
+    """Whether the test uses a fixture made once per file, class or package (so its file's tests run
+    in one worker, which makes it once)."""
+    info = getattr(item, "_fixtureinfo", None)
+    defs = info.name2fixturedefs.values() if info is not None else ()
+    return any(d and d[-1].scope in ("module", "class", "package") for d in defs)
 
 
 @pytest.hookimpl(tryfirst=True)

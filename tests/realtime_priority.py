@@ -158,16 +158,18 @@ def lanes(nodeids: set[str], count: int) -> dict[str, str]:
     return out
 
 
-def write_collected(folder: Path, worker: str, nodeids: list[str]) -> None:
-    """Note the realtime tests this worker collected (before it reports its collection)."""
+def write_collected(folder: Path, worker: str, nodeids: list[str], kind: str = "realtime") -> None:
+    """Note the tests of ``kind`` this worker collected (before it reports its collection): "realtime",
+    or "shared" (tests using a fixture made once per file or class)."""
     folder.mkdir(parents=True, exist_ok=True)
-    path = folder / f"{worker}.realtime"
-    path.with_suffix(".part").write_text("\n".join(nodeids))
-    path.with_suffix(".part").replace(path)
+    path = folder / f"{worker}.{kind}"
+    part = folder / f"{worker}.{kind}-part"
+    part.write_text("\n".join(nodeids))
+    part.replace(path)
 
 
-def read_collected(folder: Path) -> set[str]:
-    return {n for path in folder.glob("*.realtime") for n in path.read_text().splitlines() if n}
+def read_collected(folder: Path, kind: str = "realtime") -> set[str]:
+    return {n for path in folder.glob(f"*.{kind}") for n in path.read_text().splitlines() if n}
 
 
 def _without_group(nodeid: str) -> str:
@@ -177,18 +179,22 @@ def _without_group(nodeid: str) -> str:
 
 class RealtimeFirst(LoadScopeScheduling):
     """Each test its own unit, except the realtime tests: one unit per lane, handed out before any
-    other unit, one lane per worker; the lanes' workers are marked in ``folder`` before any test runs."""
+    other unit, one lane per worker (the lanes' workers are marked in ``folder`` before any test
+    runs); and the tests of a file that share a fixture made once per file or class: one unit, so
+    that one worker makes it once (a browser, a written dataset, a trained tiny model)."""
 
     def __init__(self, config, log, folder: Path):
         super().__init__(config, log)
         self.folder = folder
         self.lane_of: dict[str, str] = {}
         self.lanes_first = False
+        self.shared: set[str] = set()
 
     def schedule(self) -> None:
         if self.collection is None:  # the first call: every worker has collected (and written)
             count = max(1, min(LANES, len(self.nodes) - 1))
             self.lane_of = lanes(read_collected(self.folder), count)
+            self.shared = read_collected(self.folder, "shared")
             used = len(set(self.lane_of.values()))
             # the lanes go to the first nodes (_assign_work_unit below): marked before any test starts
             for node in self.nodes[:used]:
@@ -205,4 +211,7 @@ class RealtimeFirst(LoadScopeScheduling):
         super()._assign_work_unit(node)
 
     def _split_scope(self, nodeid: str) -> str:
-        return self.lane_of.get(_without_group(nodeid), nodeid)
+        plain = _without_group(nodeid)
+        if plain in self.lane_of:
+            return self.lane_of[plain]
+        return plain.split("::", 1)[0] if plain in self.shared else nodeid
