@@ -54,7 +54,10 @@ def pytest_collection_modifyitems(config, items):
         folder, worker = _workers_folder(config), config.workerinput["workerid"]
         realtime = [item.nodeid for item in items if item.get_closest_marker("realtime") is not None]
         realtime_priority.write_collected(folder, worker, realtime)
-        shared = [item.nodeid for item in items if _shares_a_fixture(item)]
+        # a file with a fixture made once per file: all its tests in one unit (a test may read what the
+        # others left, as test_corruption_corpus.py's table does)
+        files = {item.nodeid.split("::", 1)[0] for item in items if _shares_a_fixture(item)}
+        shared = [item.nodeid for item in items if item.nodeid.split("::", 1)[0] in files]
         realtime_priority.write_collected(folder, worker, shared, "shared")
 
 

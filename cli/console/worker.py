@@ -6,10 +6,8 @@ thread opens the rig, takes commands from a queue and hands snapshots back throu
 motion session (rig/motion.py) exactly as ``rig jog`` does; a move is started and then
 monitored here, poll by poll, so that a stop command (or the console closing) stops it
 between two safety checks instead of after the move. A protocol started from the page runs through
-cli/console/worker_protocol.py.
+cli/console/worker_protocol.py, a jog or a homing through cli/console/worker_moves.py.
 """
-# Over 400 lines (450): the worker's thread, its command loop, jogging and reading are one lifecycle around
-# one rig; the protocol part is already apart; moving the jog (60 lines) out is issue 39's.
 
 from __future__ import annotations
 
@@ -26,9 +24,10 @@ from typing import Any
 
 import numpy as np
 
+from cli.console.worker_moves import Moving
 from cli.console.worker_protocol import HISTORY_S, ProtocolRunning, tare_state
 from common.errors import ToolError
-from rig.errors import DeviceBusy, DeviceTimeout, RigError
+from rig.errors import DeviceBusy, DeviceTimeout
 
 log = logging.getLogger("rig.console")
 
@@ -111,7 +110,7 @@ def open_console_rig(config: Path | None, sim: bool, sensor: str = "rgb") -> Ite
             yield rig, None
 
 
-class RigWorker(ProtocolRunning):
+class RigWorker(ProtocolRunning, Moving):
     """Owns the rig in its own thread. ``submit`` commands; snapshots arrive through
     ``on_state(dict)``, ``on_event(level, text)`` and ``on_frame(FrameOut)``, called from
     this thread."""
@@ -299,67 +298,6 @@ class RigWorker(ProtocolRunning):
                 except Exception as exc:
                     self.errors_seen += 1
                     self._on_event("error", f"gauge stream could not be restarted: {exc}")
-
-    # -- moving -----------------------------------------------------------------------------
-    def _jog(self, command: Command) -> None:
-        rig = self.rig
-        axis, step = command.axis, command.step
-        if axis is None or axis not in rig.axes or step is None or not np.isfinite(step):
-            raise RigError(f"jog needs an open axis ({', '.join(rig.axes)}) and a finite step, got {axis!r} {step!r}")
-        cfg = rig.config.axes[axis]
-        here = rig.axes[axis].position()
-        last = rig.last_targets.get(axis)  # as `rig jog`: steps from the last target do not accumulate rounding
-        base = last if last is not None and abs(here - last) <= rig.tolerance(axis) else here
-        target = base + step
-        rig.check_targets({axis: target})  # refused before a session opens: nothing moves
-        self.activity = f"{axis} → {target:.4f} {cfg.unit}"
-        with rig.motion("console jog", on_note=lambda text: self._on_event("warn", text)) as m:
-            guard = m.start_move({axis: target})  # at the speed envelope's pace (a clamp is said as an event)
-            deadline = rig.clock.now() + 5.0 + 2.0 * m.time_left_s()
-            self._on_event("info", f"{command.who or 'console'}: {axis} moving to {target:.4f} {cfg.unit}")
-            stopped = self._follow(m, (axis,), guard, deadline)
-        final = rig.axes[axis].position()
-        if stopped:
-            rig.last_targets.pop(axis, None)
-            self._on_event("warn", f"{axis} stopped at {final:.4f} {cfg.unit} ({stopped})")
-        else:
-            rig.last_targets[axis] = target
-            self._on_event("info", f"{axis} = {final:.4f} {cfg.unit}")
-
-    def _follow(self, m, names: tuple[str, ...], guard, deadline: float) -> str:
-        """Monitor a started move until it has settled; a stop command (or closing) stops
-        it at the next poll. Returns why it was stopped, "" when it ran to its end."""
-        stopped = ""
-        poll_s = self.rig.config.safety.poll_s
-        while True:
-            if self._closing.is_set():  # Ctrl-C or a signal to the console: the session stops and lifts z
-                raise RigError("the console is closing: motion stopped")
-            moving = m.monitor(names, guard, "console jog")
-            self._io()
-            if not moving and m.settled:
-                return stopped
-            if self.rig.clock.now() > deadline + m.slowed_s:
-                raise DeviceTimeout(", ".join(names), "console jog", None, "motion did not finish in time")
-            try:
-                command = self._commands.get(timeout=poll_s)
-            except queue.Empty:
-                continue
-            if command is None:
-                self._closing.set()
-            elif command.kind == "stop":
-                if not stopped:
-                    m.stop()
-                    stopped = f"stop from {command.who or 'the console'}"
-            else:
-                self._on_event("warn", f"{command.kind} refused: a move is in progress (stop it first)")
-
-    def _home(self, command: Command) -> None:
-        names = (command.axis,) if command.axis else None
-        self.activity = f"homing {command.axis or 'all axes'}"
-        self._publish_state(force=True)
-        with self.rig.motion("console home", on_note=lambda text: self._on_event("warn", text)) as m:
-            m.home_axes(names)  # not interruptible from the page yet: Ctrl-C in the terminal is
-        self._on_event("info", f"homed {command.axis or 'all axes'}")
 
     # -- reading ------------------------------------------------------------------------------
     def _io(self) -> None:
