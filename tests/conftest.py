@@ -69,6 +69,17 @@ def _shares_a_fixture(item) -> bool:
     return any(d and d[-1].scope in ("module", "class", "package") for d in defs)
 
 
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_protocol(item, nextitem):
+    """A realtime test runs in its turn: beside the other lane's, or alone (``realtime(alone=True)``)."""
+    mark = item.get_closest_marker("realtime")
+    if not _is_worker(item.config) or mark is None:
+        yield
+        return
+    with realtime_priority.turn(_workers_folder(item.config), alone=bool(mark.kwargs.get("alone"))):
+        yield
+
+
 @pytest.hookimpl(tryfirst=True)
 def pytest_runtest_setup(item):
     if not _is_worker(item.config):

@@ -22,7 +22,10 @@ other unit, and marks their workers in the run's folder before the first test st
 
 from __future__ import annotations
 
+import contextlib
+import fcntl
 import os
+from collections.abc import Iterator
 from pathlib import Path
 
 from xdist.scheduler import LoadScopeScheduling
@@ -123,6 +126,20 @@ def lower_other_workers(folder: Path) -> int:
         return 0
     tree = _children()
     return lower([p for pid in others for p in descendants(pid, tree)])
+
+
+@contextlib.contextmanager
+def turn(folder: Path, alone: bool) -> Iterator[None]:
+    """A realtime test's turn: shared with the other lane's test, or (``alone``: a test whose threads
+    must keep pace with a device's bytes, as a gauge's stream) with none, waiting for the other lane's
+    test in progress to end (the lanes end minutes before the other workers, so this costs no time)."""
+    folder.mkdir(parents=True, exist_ok=True)
+    with open(folder / "realtime.lock", "a") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX if alone else fcntl.LOCK_SH)
+        try:
+            yield
+        finally:
+            fcntl.flock(lock, fcntl.LOCK_UN)
 
 
 def runs_a_lane(folder: Path, worker: str) -> bool:

@@ -49,6 +49,28 @@ def test_descendants_follow_the_process_tree():
     assert rp.descendants(7, tree) == [7]
 
 
+def test_an_alone_turn_waits_for_the_other_lanes_test_and_shared_turns_do_not(tmp_path):
+    import threading
+
+    got = []
+
+    def take(alone: bool) -> None:
+        with rp.turn(tmp_path, alone):
+            got.append(alone)
+
+    with rp.turn(tmp_path, alone=False):  # the other lane's test in progress
+        beside = threading.Thread(target=take, args=(False,))
+        beside.start()
+        beside.join(timeout=10)
+        assert got == [False]  # a shared turn beside it at once
+        alone = threading.Thread(target=take, args=(True,))
+        alone.start()
+        alone.join(timeout=0.5)
+        assert alone.is_alive() and got == [False]  # the alone test waits
+    alone.join(timeout=10)
+    assert got == [False, True]  # and runs once the other test has ended
+
+
 def test_lanes_keep_files_whole_and_balance_their_time():
     ids = {f"tests/{f}::t{i}" for f in ("test_host_signals.py", "test_check_axes.py", "test_new.py") for i in range(3)}
     one = rp.lanes(ids, 1)
