@@ -1,11 +1,10 @@
 """The console scripts' entry points (pyproject.toml, [project.scripts]): a Ctrl-C at any moment of a
 command's start-up is one line, never a traceback nor a half-imported library's error.
 
-From the first instruction (cli/__init__.py, ``hold_ctrl_c_in_imports``) a Ctrl-C that lands while a
-module is being imported, or before ``_run`` has started, is held until that import has finished and
-``_run`` runs (it is looked at again every 20 ms), then raised as KeyboardInterrupt, so that no
-library is left half imported (a Ctrl-C inside numpy's import once came out as "AttributeError:
-module 'numpy._core' has no attribute '_multiarray_umath'").
+``_run`` imports the command line itself, inside a handler of its own: a Ctrl-C that lands while a
+module is being imported is held until that import has finished (it is looked at again every 20 ms),
+then raised as KeyboardInterrupt, so that no library is left half imported (a Ctrl-C inside numpy's
+import once came out as "AttributeError: module 'numpy._core' has no attribute '_multiarray_umath'").
 A second Ctrl-C while the first is held ends the command at once. Anywhere else a Ctrl-C is raised
 as usual, and the command's own handling applies (``friendly`` in cli/dataset_app.py, training's
 checkpoint); a moving `rig` command keeps the hold it installed at its first instruction
@@ -21,23 +20,17 @@ import importlib
 import os
 import signal
 import sys
-import threading
 
-SCRIPTS = frozenset({"rig", "dataset", "train", "generate", "evaluate", "compare"})  # pyproject.toml
 LOOK_AGAIN_S = 0.02  # how often a held Ctrl-C looks whether the import it landed in has finished
 _held = False
 
 
-def _may_raise(frame) -> bool:
-    """Whether a KeyboardInterrupt may be raised in ``frame``: inside ``_run`` (where it is caught)
-    and not inside an import (which it would leave half done)."""
-    inside_run = False
+def _in_import(frame) -> bool:
     while frame is not None:
         if frame.f_code.co_filename.startswith("<frozen importlib"):
-            return False
-        inside_run = inside_run or frame.f_code is _run.__code__
+            return True
         frame = frame.f_back
-    return inside_run
+    return False
 
 
 def _die(message: str) -> None:
@@ -52,7 +45,7 @@ def _on_sigint(_signum, frame) -> None:
     global _held
     if _held:
         _die("interrupted (Ctrl-C twice)")
-    if not _may_raise(frame):
+    if _in_import(frame):
         _held = True
         signal.setitimer(signal.ITIMER_REAL, LOOK_AGAIN_S)
         return
@@ -63,31 +56,25 @@ def _on_alarm(_signum, frame) -> None:
     global _held
     if not _held:
         return
-    if not _may_raise(frame):
+    if _in_import(frame):
         signal.setitimer(signal.ITIMER_REAL, LOOK_AGAIN_S)
         return
     _held = False
     raise KeyboardInterrupt
 
 
-def hold_ctrl_c_in_imports(argv: list[str]) -> None:
-    """Install the handlers above when ``argv`` is one of the console scripts (not, say, a test runner
-    importing ``cli``) and nobody else holds SIGINT; called by cli/__init__.py, the first instruction."""
-    if os.path.basename(argv[0]) not in SCRIPTS or signal.getsignal(signal.SIGINT) is not signal.default_int_handler:
-        return
-    if threading.current_thread() is threading.main_thread():
+def _run(module: str, name: str) -> None:
+    mine = signal.getsignal(signal.SIGINT) is signal.default_int_handler  # else a moving rig command's hold
+    if mine:
         signal.signal(signal.SIGALRM, _on_alarm)
         signal.signal(signal.SIGINT, _on_sigint)
-
-
-def _run(module: str, name: str) -> None:
     try:
         getattr(importlib.import_module(module), name)()
     except KeyboardInterrupt:
         _die("interrupted (Ctrl-C)")
     finally:
-        if signal.getsignal(signal.SIGINT) is _on_sigint:  # the command has ended: a Ctrl-C now (the
-            signal.setitimer(signal.ITIMER_REAL, 0)  # interpreter's exit) only ends the process
+        if mine:  # the command has ended: a Ctrl-C now (the interpreter's exit) only ends the process
+            signal.setitimer(signal.ITIMER_REAL, 0)
             signal.signal(signal.SIGINT, signal.SIG_DFL)
             if _held:  # it came during an import and the command ended before it could be raised
                 _die("interrupted (Ctrl-C)")

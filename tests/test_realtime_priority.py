@@ -93,9 +93,9 @@ def note(name):
 
 
 @pytest.mark.realtime  # its inner run's realtime tests assert real time: this one runs where they would
-def test_on_several_processes_realtime_tests_run_in_two_lanes_never_lowered(tmp_path):
+def test_on_several_processes_realtime_tests_run_in_their_lanes_never_lowered(tmp_path):
     """Three files of realtime tests among 47 others, on four workers: each file's realtime tests in
-    one worker, two lanes on two workers, every realtime test at its worker's own priority, a lane's
+    one worker, each lane (``LANES``) on a worker of its own, every realtime test at its worker's own priority, a lane's
     worker lowered for the other tests it runs after its lane, and the six tests of a file sharing a
     fixture made once per file in one worker with the file's other test, which makes it once (xdist's
     own grouping is silently lost on pytest 9.2: pytest-dev/pytest-xdist#1386)."""
@@ -135,7 +135,7 @@ def test_on_several_processes_realtime_tests_run_in_two_lanes_never_lowered(tmp_
     lane_of = {f: {ran[f"{f}{i}"][0] for i in range(2)} for f in "abc"}
     assert all(len(workers) == 1 for workers in lane_of.values()), lane_of  # a file's tests in one worker
     lane_workers = set().union(*lane_of.values())
-    assert len(lane_workers) == 2, lane_of  # two lanes
+    assert len(lane_workers) == rp.LANES, lane_of  # the lanes, a worker each
     assert all(ran[f"{f}{i}"][1] == mine for f in "abc" for i in range(2)), ran  # never lowered
     after_lane = [nice for worker, nice in (ran[f"plain{i}"] for i in range(40)) if worker in lane_workers]
     assert all(nice == rp.OTHERS_NICE for nice in after_lane), ran

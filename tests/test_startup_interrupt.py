@@ -1,10 +1,12 @@
-"""A Ctrl-C at any moment of a command's start-up is one line, never a traceback (cli/entry.py).
+"""A Ctrl-C at any moment of a command's start-up is one line, never a traceback of the project's code
+(cli/entry.py).
 
 Each command is interrupted at moments spread over its start-up (imports, Typer building the command
-line, Click parsing it) and after, counted from its first instruction (cli/__init__.py, which makes
-it catch SIGALRM): it ends by SIGINT with one line, or by its own handling, or finishes as it would
-have. Before that instruction a Ctrl-C meets Python's own start-up, which no code of the project
-runs in (docs/safety.md).
+line, Click parsing it) and after: it ends by SIGINT with one line, or by its own handling, or finishes
+as it would have. Before the entry point's first line runs, a Ctrl-C meets Python's own start-up
+(importing its site module, then reading the entry module itself), which no code of the project runs
+in: a traceback there is the only one allowed. A Ctrl-C inside a library's import can leave that
+library half imported and come out as its error, in one line (seen once: numpy's "_multiarray_umath").
 """
 
 from __future__ import annotations
@@ -19,29 +21,21 @@ import pytest
 BIN = Path(sys.executable).parent
 
 
-def catches_sigalrm(pid: int) -> bool:
-    try:
-        status = Path(f"/proc/{pid}/status").read_text()
-    except OSError:
-        return False
-    caught = int(next(line.split()[1] for line in status.splitlines() if line.startswith("SigCgt:")), 16)
-    return bool(caught & (1 << (signal.SIGALRM - 1)))
+def before_the_project(said: str) -> bool:
+    """A traceback from before the entry point's first line: Python's site module, or the entry
+    script's own `from cli.entry import ...` (nothing of the project has run)."""
+    if "Fatal Python error: init_import_site" in said:
+        return True
+    frames = [line.strip() for line in said.splitlines() if line.strip().startswith("File ")]
+    return said.count("Traceback") == 1 and frames[:1] != [] and all("/bin/" in f or "<frozen" in f for f in frames)
 
 
 def interrupted_at(command: list[str], at_s: float) -> tuple[int, str]:
     proc = subprocess.Popen(
         [str(BIN / command[0]), *command[1:]], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True
     )
-    for _ in range(15000):  # until its first instruction (bounded: 30 s)
-        if catches_sigalrm(proc.pid):
-            break
-        try:
-            proc.wait(timeout=0.002)
-        except subprocess.TimeoutExpired:
-            continue
-        raise AssertionError(f"{command[0]} ended before its first instruction")
     try:
-        proc.wait(timeout=at_s)  # the moment, in real time after the first instruction
+        proc.wait(timeout=at_s)  # the moment, in real time after the start
     except subprocess.TimeoutExpired:
         proc.send_signal(signal.SIGINT)  # Ctrl-C
     said, _ = proc.communicate(timeout=120)
@@ -64,11 +58,17 @@ def test_a_ctrl_c_during_start_up_is_one_line(command, last_s):
         at_s = last_s * k / 9
         rc, err = interrupted_at(command, at_s)
         said.append(f"at {at_s:.3f} s: exit {rc}, {err.strip().splitlines()[-1:] if err.strip() else 'nothing said'}")
+        if before_the_project(err):
+            continue
         assert "Traceback" not in err, f"{command[0]} interrupted {at_s:.3f} s after its start: exit {rc}\n{err}"
         lines = err.strip().splitlines()
         if rc in (-signal.SIGINT, 130):  # interrupted: by SIGINT's default action, or its own handling
             # one line saying so, or nothing (before any handler), or its result already said (met its exit)
             assert not lines or lines[-1].startswith("interrupted") or "/nonexistent/" in err, err
-        else:  # ended before the Ctrl-C: the error it gives for a missing file, in one line
-            assert rc in (1, 2) and "/nonexistent/" in err, (rc, err)
+        else:  # ended before the Ctrl-C (the error it gives for a missing file), or a library's import
+            # interrupted surfaced as that library's error: in one line either way
+            assert rc in (1, 2) and ("/nonexistent/" in err or (len(lines) == 1 and lines[0].startswith("error:"))), (
+                rc,
+                err,
+            )
     assert any("interrupted" in line for line in said), "\n".join(said)  # some Ctrl-C met the start-up
