@@ -22,7 +22,7 @@ if os.environ.get("PYTEST_XDIST_WORKER"):
 # -- realtime tests on several processes ---------------------------------------------------------
 # A test marked `realtime` asserts what happens at a moment of real time (a signal 50 ms into a
 # command, a stream that must fall silent within 0.2 s). On several processes (pytest-xdist,
-# `--dist loadgroup`) they run in two lanes, a worker each, and from the first of them on the other
+# `--dist loadgroup`) they run in their lane (a worker of its own), and from the first of them on the other
 # workers run at the lowest priority (tests/realtime_priority.py). Without xdist nothing changes.
 
 
@@ -54,19 +54,6 @@ def pytest_collection_modifyitems(config, items):
         folder, worker = _workers_folder(config), config.workerinput["workerid"]
         realtime = [item.nodeid for item in items if item.get_closest_marker("realtime") is not None]
         realtime_priority.write_collected(folder, worker, realtime)
-        # a file with a fixture made once per file: all its tests in one unit (a test may read what the
-        # others left, as test_corruption_corpus.py's table does)
-        files = {item.nodeid.split("::", 1)[0] for item in items if _shares_a_fixture(item)}
-        shared = [item.nodeid for item in items if item.nodeid.split("::", 1)[0] in files]
-        realtime_priority.write_collected(folder, worker, shared, "shared")
-
-
-def _shares_a_fixture(item) -> bool:
-    """Whether the test uses a fixture made once per file, class or package (so its file's tests run
-    in one worker, which makes it once)."""
-    info = getattr(item, "_fixtureinfo", None)
-    defs = info.name2fixturedefs.values() if info is not None else ()
-    return any(d and d[-1].scope in ("module", "class", "package") for d in defs)
 
 
 @pytest.hookimpl(hookwrapper=True)

@@ -1,14 +1,14 @@
 """Realtime tests first in the CPU, the other test processes after them (Linux scheduling priority).
 
 The suite runs on several processes (pytest-xdist). Tests marked ``realtime`` assert what happens at a
-moment of real time, so a loaded machine must not delay them. They run in ``LANES`` lanes (two when
-there are workers enough to leave one for the other tests): each lane is one work unit of the
-scheduler below, one worker running its tests one after the other, and a test file's realtime tests
-stay in one lane. While they run, the workers of no lane and everything they started (threads,
-commands, simulators, browsers) are lowered to nice ``OTHERS_NICE``: the kernel then gives the
-realtime tests the cores they ask for at once, and the other workers the rest, instead of stopping
-them. A realtime test shares the cores with at most one other realtime test at a time; a lane's
-worker lowers itself when its lane is done and it goes on with other tests.
+moment of real time, so a loaded machine must not delay them. They run in ``LANES`` lanes (now one;
+never more than the workers less one): each lane is one work unit of the scheduler below, one worker
+running its tests one after the other, and a test file's realtime tests stay in one lane. While they
+run, the workers of no lane and everything they started (threads, commands, simulators, browsers) are
+lowered to nice ``OTHERS_NICE``: the kernel then gives the realtime tests the cores they ask for at
+once, and the other workers the rest, instead of stopping them. With several lanes a realtime test
+shares the cores with one other realtime test, except one marked ``realtime(alone=True)`` (``turn``);
+a lane's worker lowers itself when its lane is done and it goes on with other tests.
 
 Only ever raising a process's nice value needs no privilege (lowering it back would), so a lowered
 worker stays lowered for the rest of the run; none of its tests asserts real time.
@@ -176,8 +176,7 @@ def lanes(nodeids: set[str], count: int) -> dict[str, str]:
 
 
 def write_collected(folder: Path, worker: str, nodeids: list[str], kind: str = "realtime") -> None:
-    """Note the tests of ``kind`` this worker collected (before it reports its collection): "realtime",
-    or "shared" (tests using a fixture made once per file or class)."""
+    """Note the tests of ``kind`` ("realtime") this worker collected (before it reports its collection)."""
     folder.mkdir(parents=True, exist_ok=True)
     path = folder / f"{worker}.{kind}"
     part = folder / f"{worker}.{kind}-part"
@@ -197,21 +196,18 @@ def _without_group(nodeid: str) -> str:
 class RealtimeFirst(LoadScopeScheduling):
     """Each test its own unit, except the realtime tests: one unit per lane, handed out before any
     other unit, one lane per worker (the lanes' workers are marked in ``folder`` before any test
-    runs); and the tests of a file that share a fixture made once per file or class: one unit, so
-    that one worker makes it once (a browser, a written dataset, a trained tiny model)."""
+    runs)."""
 
     def __init__(self, config, log, folder: Path):
         super().__init__(config, log)
         self.folder = folder
         self.lane_of: dict[str, str] = {}
         self.lanes_first = False
-        self.shared: set[str] = set()
 
     def schedule(self) -> None:
         if self.collection is None:  # the first call: every worker has collected (and written)
             count = max(1, min(LANES, len(self.nodes) - 1))
             self.lane_of = lanes(read_collected(self.folder), count)
-            self.shared = read_collected(self.folder, "shared")
             used = len(set(self.lane_of.values()))
             # the lanes go to the first nodes (_assign_work_unit below): marked before any test starts
             for node in self.nodes[:used]:
@@ -228,7 +224,4 @@ class RealtimeFirst(LoadScopeScheduling):
         super()._assign_work_unit(node)
 
     def _split_scope(self, nodeid: str) -> str:
-        plain = _without_group(nodeid)
-        if plain in self.lane_of:
-            return self.lane_of[plain]
-        return plain.split("::", 1)[0] if plain in self.shared else nodeid
+        return self.lane_of.get(_without_group(nodeid), nodeid)
