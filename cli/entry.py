@@ -12,6 +12,7 @@ and come out as that library's error in one line (docs/safety.md).
 
 from __future__ import annotations
 
+import functools
 import importlib
 import os
 import signal
@@ -33,25 +34,10 @@ def _run(module: str, name: str) -> None:
         _die("interrupted (Ctrl-C)")
 
 
-def rig() -> None:
-    _run("cli.rig_app", "app")
-
-
-def dataset() -> None:
-    _run("cli.dataset_app", "app")
-
-
-def train() -> None:
-    _run("cli.model_app", "main")
-
-
-def generate() -> None:
-    _run("cli.model_app", "generate_main")
-
-
-def evaluate() -> None:
-    _run("cli.model_app", "evaluate_main")
-
-
-def compare() -> None:
-    _run("cli.model_app", "compare_main")
+# one callable per console script (pyproject.toml names them)
+rig = functools.partial(_run, "cli.rig_app", "app")
+dataset = functools.partial(_run, "cli.dataset_app", "app")
+train = functools.partial(_run, "cli.model_app", "main")
+generate = functools.partial(_run, "cli.model_app", "generate_main")
+evaluate = functools.partial(_run, "cli.model_app", "evaluate_main")
+compare = functools.partial(_run, "cli.model_app", "compare_main")

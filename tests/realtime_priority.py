@@ -31,7 +31,7 @@ from pathlib import Path
 from xdist.scheduler import LoadScopeScheduling
 
 OTHERS_NICE = 19  # the lowest priority: CFS weight 15 against a default task's 1024
-LANES = 1  # at most (two lanes were tried: a realtime test beside another failed in 2 of 4 full runs)
+LANES = 1  # at most (two lanes were tried: a realtime test beside another failed in 2 of 5 full runs)
 UNIT = "realtime"  # the scheduler's name of a lane's unit: realtime-0, realtime-1
 # Seconds of wall time each file's realtime tests took in their lane (three workers, idle 2-core VM,
 # 2026-11-29), only to balance the lanes; a file not listed counts DEFAULT_S.
@@ -114,7 +114,7 @@ def lower_other_workers(folder: Path) -> int:
     me = os.getpid()
     others = []
     for path in folder.glob("*.pid"):
-        if (folder / f"{path.stem}.lane").exists():
+        if runs_a_lane(folder, path.stem):
             continue  # a lane's worker: realtime tests run there (it lowers itself when its lane is done)
         try:
             pid = int(path.read_text())
@@ -175,17 +175,16 @@ def lanes(nodeids: set[str], count: int) -> dict[str, str]:
     return out
 
 
-def write_collected(folder: Path, worker: str, nodeids: list[str], kind: str = "realtime") -> None:
-    """Note the tests of ``kind`` ("realtime") this worker collected (before it reports its collection)."""
+def write_collected(folder: Path, worker: str, nodeids: list[str]) -> None:
+    """Note the realtime tests this worker collected (before it reports its collection)."""
     folder.mkdir(parents=True, exist_ok=True)
-    path = folder / f"{worker}.{kind}"
-    part = folder / f"{worker}.{kind}-part"
+    part = folder / f"{worker}.realtime-part"
     part.write_text("\n".join(nodeids))
-    part.replace(path)
+    part.replace(folder / f"{worker}.realtime")
 
 
-def read_collected(folder: Path, kind: str = "realtime") -> set[str]:
-    return {n for path in folder.glob(f"*.{kind}") for n in path.read_text().splitlines() if n}
+def read_collected(folder: Path) -> set[str]:
+    return {n for path in folder.glob("*.realtime") for n in path.read_text().splitlines() if n}
 
 
 def _without_group(nodeid: str) -> str:
