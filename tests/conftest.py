@@ -1,4 +1,6 @@
 import os
+import signal
+import threading
 from pathlib import Path
 
 import pytest
@@ -17,6 +19,12 @@ if os.environ.get("PYTEST_XDIST_WORKER"):
     # worker, in this process (before torch is imported) and in the commands it starts.
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     os.environ.setdefault("TACTILE_TORCH_THREADS", "1")
+if signal.getsignal(signal.SIGINT) == signal.SIG_IGN and threading.current_thread() is threading.main_thread():
+    # A run started in the background of a non-interactive shell (`pytest &` in a script) inherits
+    # SIGINT ignored, and so would every command the tests start: the Ctrl-C tests would meet commands
+    # deaf to it, as none started from a terminal is. Python's own Ctrl-C is put back (the commands
+    # then start with the default action).
+    signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 # -- realtime tests on several processes ---------------------------------------------------------

@@ -92,7 +92,7 @@ def descendants(pid: int, tree: dict[int, list[int]]) -> list[int]:
 
 
 def lower(pids: list[int], nice: int = OTHERS_NICE) -> int:
-    """Set every thread of ``pids`` to at least ``nice``; the number of threads changed."""
+    """Every thread of ``pids`` on the normal policy at ``nice`` or lower; the number of changes."""
     changed = 0
     for pid in pids:
         try:
@@ -101,6 +101,11 @@ def lower(pids: list[int], nice: int = OTHERS_NICE) -> int:
             continue  # ended meanwhile
         for tid in tids:
             try:
+                if os.sched_getscheduler(tid) in (os.SCHED_FIFO, os.SCHED_RR):
+                    # a library switched it to real time (SVT-AV1 does, as root: common/scheduling.py):
+                    # ahead of every normal thread whatever its nice value
+                    os.sched_setscheduler(tid, os.SCHED_OTHER, os.sched_param(0))
+                    changed += 1
                 if os.getpriority(os.PRIO_PROCESS, tid) < nice:  # Linux: a thread id names one thread
                     os.setpriority(os.PRIO_PROCESS, tid, nice)
                     changed += 1

@@ -23,6 +23,7 @@ from rig.rig import Rig
 from rig.sim.rig_sim import SimulatedRig
 
 runner = CliRunner()
+TRUE_SURFACE = 0.0  # the simulated gel's surface in axis z
 
 
 def section(text: str, name: str) -> tuple[int, int]:
@@ -201,7 +202,7 @@ def test_rig_check_axes_fix_writes_the_config_and_the_next_check_passes(tmp_path
 
 @pytest.mark.slow
 @pytest.mark.realtime  # the rig serves on this process's threads: under load its gauge samples age past the guard
-@pytest.mark.timeout(420)  # its waits: 180 + 60 + 60 s of real time
+@pytest.mark.timeout(360)  # its waits: 120 + 60 + 60 s of real time
 @pytest.mark.parametrize("signame", ["SIGTERM", "SIGINT"])
 def test_a_signal_while_the_check_drags_the_contact_stops_and_lifts(tmp_path, signame):
     """The check's moves are a motion session's: a signal while the pressed indenter is dragged back
@@ -215,12 +216,15 @@ def test_a_signal_while_the_check_drags_the_contact_stops_and_lifts(tmp_path, si
         sim.serve_camera()
         cfg = tmp_path / "rig-sim.toml"
         cfg.write_text(sim.config_toml())
+        with Rig.open(load_config(cfg), sim.clock, sim=sim) as rig:  # as after `rig find-contact` (its own tests)
+            rig.tare(20)  # z starts clear of the gel
+            rig.state.remember_surface(TRUE_SURFACE, "find-contact")
         proc = subprocess.Popen(
             [RIG_BIN, "check-axes", "--config", str(cfg)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
         )
         try:
             lines = lines_of(proc.stderr)
-            wait_for_line(lines, "x: moving to 1.0000 mm", 180)  # lifted, moved in the air
+            wait_for_line(lines, "x: moving to 1.0000 mm", 120)  # pressed, lifted, moved in the air
             wait_for_line(lines, "x: moving to 0.0000 mm", 60)  # pressed, dragged back: in contact
             assert sim.world.stages["x"].busy(sim.clock.now()), "the check said it drags, but x is idle"
             proc.send_signal(getattr(signal, signame))
@@ -236,7 +240,7 @@ def test_a_signal_while_the_check_drags_the_contact_stops_and_lifts(tmp_path, si
         status = subprocess.run([RIG_BIN, "status", "--config", str(cfg)], capture_output=True, text=True, timeout=60)
         assert status.returncode == 0, status.stderr
         (z_row,) = [line for line in status.stdout.splitlines() if line.strip("│ ").startswith("z ")]
-        assert float(z_row.split("│")[2]) > 0.0, z_row  # lifted clear of the gel (its surface: z ≈ -0.11 mm)
+        assert float(z_row.split("│")[2]) > TRUE_SURFACE, z_row  # lifted clear of the gel
 
 
 def test_a_press_deeper_than_the_depth_guard_is_refused_before_anything_moves():

@@ -5,6 +5,7 @@ parts as episodes; every damage refused in one line with nothing written."""
 from __future__ import annotations
 
 import json
+import os
 import shutil
 from pathlib import Path
 
@@ -16,6 +17,7 @@ from typer.testing import CliRunner
 from acquisition import schema as S
 from acquisition.run_reader import RunReader
 from cli.dataset_app import app as dataset_app
+from common.scheduling import real_time_threads
 from dataset.lerobot import layout as L
 
 runner = CliRunner()
@@ -113,10 +115,13 @@ def test_a_lossy_round_trip_is_within_the_error_export_reports(sim_run, tmp_path
     out, back = tmp_path / "av1", tmp_path / "back.h5"
     code, said = _dataset("export", str(sim_run), "--format", "lerobot", "--out", str(out), "--codec", "av1")
     assert code == 0, said
+    # SVT-AV1 switched this thread and its own to real time (as root): every one is back (common/scheduling.py)
+    assert real_time_threads() == [] and os.sched_getscheduler(0) == os.SCHED_OTHER
     reported = float(said.split("lossy: MSE ")[1].split()[0])
     assert _dataset("import", str(out), "--format", "lerobot", "--out", str(back))[0] == 0
     measured = _same_run(sim_run, back, lossless=False)
     assert 0 < measured < 50 and abs(measured - reported) < 0.01, (measured, reported)
+    assert real_time_threads() == []  # nor did reading it back switch any
 
 
 def test_presses_and_a_splits_parts_are_episodes(sim_run, tmp_path):

@@ -43,6 +43,31 @@ def test_a_worker_and_everything_it_started_are_lowered_and_this_process_is_not(
         parent.wait(timeout=30)
 
 
+def test_a_worker_a_library_switched_to_real_time_is_put_back_and_lowered(tmp_path):
+    """A worker's thread on SCHED_FIFO (SVT-AV1 does it to its caller, as root) runs ahead of every normal
+    thread whatever its nice value: lowering takes it off real time too."""
+    switched = (
+        "import os, sys\nos.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(1))\n"
+        "print(1, flush=True)\nsys.stdin.readline()\n"
+    )
+    worker = subprocess.Popen(
+        [sys.executable, "-c", switched], stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True
+    )
+    try:
+        if worker.stdout.readline().strip() != "1":
+            pytest.skip("this user may not switch a process to real time (root may)")
+        assert os.sched_getscheduler(worker.pid) == os.SCHED_FIFO
+        (tmp_path / "gw1.pid").write_text(str(worker.pid))
+        rp.register_worker(tmp_path, "gw0")
+        assert rp.lower_other_workers(tmp_path) >= 1  # off real time (and lowered, unless started so)
+        assert os.sched_getscheduler(worker.pid) == os.SCHED_OTHER
+        assert os.getpriority(os.PRIO_PROCESS, worker.pid) == rp.OTHERS_NICE
+    finally:
+        worker.stdin.write("\n")
+        worker.stdin.close()
+        worker.wait(timeout=30)
+
+
 def test_descendants_follow_the_process_tree():
     tree = {1: [2, 3], 3: [4], 4: [5], 9: [10]}
     assert sorted(rp.descendants(1, tree)) == [1, 2, 3, 4, 5]

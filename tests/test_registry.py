@@ -7,6 +7,7 @@ are what the config, the factory and the command line offer.
 from __future__ import annotations
 
 import struct
+import threading
 
 import numpy as np
 import pytest
@@ -42,6 +43,7 @@ class ToyGaugeSim:
         self.world = world
         self.schedule = SampleSchedule(rate_hz)
         self.commands: list[bytes] = []
+        self.stopped = threading.Event()  # the stop command arrived (the driver sends it as it closes)
 
     def feed(self, data: bytes, now_s: float) -> list[bytes]:
         out = []
@@ -54,6 +56,7 @@ class ToyGaugeSim:
                 self.schedule.start(now_s)
             elif command == b"X":
                 self.schedule.stop()
+                self.stopped.set()
         return out
 
     def tick_interval_s(self):
@@ -169,6 +172,7 @@ def test_factory_and_simulated_rig_open_the_registered_gauge(toy):
             with rig.motion("test") as m:  # the force guard reads the toy gauge
                 m.move({"z": z0 - 0.2}, 2.0)
             assert abs(rig.axes["z"].position() - (z0 - 0.2)) < 1e-3
+        assert sim.gauge_sim.model.stopped.wait(10), sim.gauge_sim.model.commands[-5:]  # the server's own thread
         assert sim.gauge_sim.model.commands[:1] == [b"S"] and b"X" in sim.gauge_sim.model.commands
 
 

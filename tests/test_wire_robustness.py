@@ -308,3 +308,48 @@ def test_the_ft300_stream_costs_one_contact_solve_per_clock_advance(world, manua
     frames = sim.tick(manual_clock.now())
     assert len(frames) == 100 and len(calls) == 2  # 0.01 .. 1.00 s: one solve
     assert all(len(f) == len(ft.encode_stream_frame([0.0] * 6)) for f in frames)
+
+
+def test_a_socket_port_closes_at_once_and_waits_only_before_reopening_the_same_address(monkeypatch):
+    """pyserial pauses 0.3 s after closing a socket:// port; a command paid it per link at its exit. The
+    port closes without it (the peer sees the end at once), and only a reopen of that address by this
+    process waits out the rest of the pause, as pyserial meant it (a serial server may take one client)."""
+    import socket
+
+    import serial.urlhandler.protocol_socket as pyserial_socket
+
+    from rig.transport import serial_link
+
+    slept: list[float] = []
+
+    class Clock:
+        t = 100.0
+
+        def now(self):
+            return self.t
+
+        def sleep(self, dt_s):
+            slept.append(dt_s)
+
+    def no_sleep(dt_s):
+        raise AssertionError(f"pyserial's own pause ({dt_s} s) was taken")
+
+    monkeypatch.setattr(serial_link, "_REAL", Clock())
+    monkeypatch.setattr(pyserial_socket.time, "sleep", no_sleep)
+    with socket.create_server(("127.0.0.1", 0)) as server:
+        url = f"socket://127.0.0.1:{server.getsockname()[1]}"
+        port = serial_link.open_port(url, baudrate=9600, timeout_s=0.5, device="test")
+        peer, _ = server.accept()
+        with peer:
+            port.close()
+            assert not port.is_open and slept == []
+            peer.settimeout(5)
+            assert peer.recv(1) == b""  # the peer sees the end
+        serial_link._REAL.t += 0.1
+        again = serial_link.open_port(url, baudrate=9600, timeout_s=0.5, device="test")
+        assert slept == [pytest.approx(0.2)]  # the rest of the pause, before the same address again
+        again.close()
+        server.accept()[0].close()
+        other = serial_link.open_port(url.replace("127.0.0.1", "localhost"), baudrate=9600, timeout_s=0.5, device="t")
+        assert slept == [pytest.approx(0.2)]  # another address: no wait
+        other.close()

@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 
 from common.errors import ToolError
+from common.scheduling import kept_normal
 
 
 class VideoError(ToolError):
@@ -59,25 +60,30 @@ def write_video(path: Path, frames_bgr: Iterable[np.ndarray], fps: int, chosen: 
     import av
 
     os.environ.setdefault("SVT_LOG", "1")  # SVT-AV1 prints its configuration to stderr unless told: errors only
-    container = av.open(str(path), mode="w", format="mp4")
     n = 0
-    try:
-        stream: Any = None  # the video stream, made once the first frame gives its size
-        for frame in frames_bgr:
-            if stream is None:
-                stream = container.add_stream(chosen.encoder, rate=fps, options=dict(chosen.options))
-                stream.height, stream.width = frame.shape[:2]
-                stream.pix_fmt = chosen.pix_fmt
-            picture = av.VideoFrame.from_ndarray(np.ascontiguousarray(frame), format="bgr24")
-            picture.pts = n
-            for packet in stream.encode(picture):
-                container.mux(packet)
-            n += 1
-        if stream is not None:
-            for packet in stream.encode():
-                container.mux(packet)
-    finally:
-        container.close()
+    # SVT-AV1 switches the thread that opens it, and so its own threads, to real-time priority when it may
+    # (common/scheduling.py): put back on the normal policy once made, and again at the end
+    with kept_normal() as settle:
+        container = av.open(str(path), mode="w", format="mp4")
+        try:
+            stream: Any = None  # the video stream, made once the first frame gives its size
+            for frame in frames_bgr:
+                if stream is None:
+                    stream = container.add_stream(chosen.encoder, rate=fps, options=dict(chosen.options))
+                    stream.height, stream.width = frame.shape[:2]
+                    stream.pix_fmt = chosen.pix_fmt
+                picture = av.VideoFrame.from_ndarray(np.ascontiguousarray(frame), format="bgr24")
+                picture.pts = n
+                for packet in stream.encode(picture):
+                    container.mux(packet)
+                if n == 0:
+                    settle()  # the encoder is open and its threads made
+                n += 1
+            if stream is not None:
+                for packet in stream.encode():
+                    container.mux(packet)
+        finally:
+            container.close()
     return n
 
 

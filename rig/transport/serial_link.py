@@ -31,6 +31,11 @@ PORT_ERRORS = (serial.SerialException, OSError, TypeError, *TERMIOS_ERROR)
 # Real seconds one blocking read waits before the reply deadline is checked again.
 POLL_S = 0.01
 _REAL = SystemClock()  # reply deadlines on hardware are real time
+# pyserial pauses 0.3 s after closing a ``socket://`` port, "in case of quick reconnects" (a serial
+# server on Ethernet may take one client at a time): every command paid it per link at its exit.
+# The pause is kept only where it serves: before this process opens the same address again.
+RECONNECT_PAUSE_S = 0.3
+_socket_closed_at: dict[str, float] = {}  # socket:// URL -> real time this process closed it
 
 
 class TrackedPort:
@@ -44,8 +49,9 @@ class TrackedPort:
     Everything else is delegated to the wrapped port.
     """
 
-    def __init__(self, port, *, exclusive_tty: bool = False):
+    def __init__(self, port, *, exclusive_tty: bool = False, url: str = ""):
         object.__setattr__(self, "_port", port)
+        object.__setattr__(self, "_url", url)
         object.__setattr__(self, "bytes_read", 0)
         object.__setattr__(self, "bytes_written", 0)
         object.__setattr__(self, "_exclusive_tty", exclusive_tty)  # TIOCEXCL set: cleared at close
@@ -114,7 +120,19 @@ class TrackedPort:
         fd = getattr(self._port, "fd", None)
         if self._exclusive_tty and isinstance(fd, int):
             exclusive.let_go(fd)
-        self._port.close()
+        sock = getattr(self._port, "_socket", None)
+        if sock is None:
+            self._port.close()
+            return
+        try:  # pyserial's socket close, less its pause (RECONNECT_PAUSE_S)
+            sock.shutdown(socket.SHUT_RDWR)
+        except OSError:
+            pass  # the peer went first
+        finally:
+            sock.close()
+            self._port._socket = None
+            self._port.is_open = False
+            _socket_closed_at[self._url] = _REAL.now()
 
     def __getattr__(self, name):
         return getattr(self._port, name)
@@ -133,6 +151,8 @@ def open_port(url: str, *, baudrate: int, timeout_s: float, device: str) -> Trac
         peer = peers.lookup(url)
         write_timeout_s = max(timeout_s, peer.stall_limit_s) if peer is not None else timeout_s
         options = {"exclusive": True} if lock else {}
+        if url in _socket_closed_at:  # closed by this process a moment ago: the pause pyserial would have made
+            _REAL.sleep(_socket_closed_at.pop(url) + RECONNECT_PAUSE_S - _REAL.now())
         port = serial.serial_for_url(
             url, baudrate=baudrate, timeout=timeout_s, write_timeout=write_timeout_s, **options
         )
@@ -145,7 +165,7 @@ def open_port(url: str, *, baudrate: int, timeout_s: float, device: str) -> Trac
         port_name = "the port" if url in device else f"port {url}"  # the device's name often says which
         raise DeviceDisconnected(device, f"open {url}", None, f"cannot open {port_name}: {why}") from exc
     fd = getattr(port, "fd", None)
-    return TrackedPort(port, exclusive_tty=lock and isinstance(fd, int) and exclusive.hold(fd))
+    return TrackedPort(port, exclusive_tty=lock and isinstance(fd, int) and exclusive.hold(fd), url=url)
 
 
 class _RealTimeWait:
