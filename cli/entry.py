@@ -5,7 +5,8 @@ command's imports, while Typer builds the command line) ends it with one line, n
 Once a command runs, its own handling applies (``friendly`` in cli/dataset_app.py, the motion
 session of a moving `rig` command, training's checkpoint). The process then ends by SIGINT, as an
 uncaught Ctrl-C ends any program, so that a shell script running it stops too (a shell goes on after
-a child that exited normally, even with status 130). Not covered: Python's own start-up before the
+a child that exited normally, even with status 130); so does a Ctrl-C after the command has finished,
+while the interpreter shuts down. Not covered: Python's own start-up before the
 entry point's first line, and a Ctrl-C inside a library's import, which can leave it half imported
 and come out as that library's error in one line (docs/safety.md).
 """
@@ -32,6 +33,12 @@ def _run(module: str, name: str) -> None:
         getattr(importlib.import_module(module), name)()
     except KeyboardInterrupt:
         _die("interrupted (Ctrl-C)")
+    finally:
+        if signal.getsignal(signal.SIGINT) is not signal.SIG_IGN:
+            # The command is done. A Ctrl-C while the interpreter shuts down (joining threads, exit
+            # handlers) ends the process at once by SIGINT, instead of Python printing "Exception
+            # ignored in: <module 'threading'>" and a KeyboardInterrupt traceback.
+            signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
 # one callable per console script (pyproject.toml names them)

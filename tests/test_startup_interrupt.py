@@ -73,3 +73,37 @@ def test_a_ctrl_c_during_start_up_is_one_line(command, last_s):
             )
     interrupted = [line for line in said if f"exit {-signal.SIGINT}," in line or "exit 130," in line]
     assert interrupted, "\n".join(said)  # some Ctrl-C met the start-up
+
+
+FINISHED = """
+import sys, threading
+sys.path.insert(0, sys.argv[1])
+import cli.entry
+cli.entry._run("finishing", "app")
+"""
+FINISHING = """
+import sys, threading
+def app():
+    # a thread the interpreter joins as it shuts down, after the command has returned
+    threading.Thread(target=threading.Event().wait, args=(30,)).start()
+    print("done", flush=True)
+"""
+
+
+def test_a_ctrl_c_after_the_command_finished_ends_it_at_once_without_a_traceback(tmp_path):
+    """The command returned; the interpreter joins a thread as it shuts down: a Ctrl-C then ends the
+    process by SIGINT at once, not Python's "Exception ignored in: <module 'threading'>" traceback."""
+    (tmp_path / "finishing.py").write_text(FINISHING)
+    proc = subprocess.Popen(
+        [sys.executable, "-c", FINISHED, str(tmp_path)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+    )
+    try:
+        assert proc.stdout.readline().strip() == "done"
+        proc.send_signal(signal.SIGINT)
+        _, err = proc.communicate(timeout=20)  # not the thread's 30 s
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert proc.returncode == -signal.SIGINT, (proc.returncode, err)
+    assert "Traceback" not in err and "Exception ignored" not in err, err
