@@ -23,6 +23,7 @@ from functools import lru_cache
 from pathlib import Path
 
 import h5py
+from h5py._objects import phil  # h5py's lock around the HDF5 library
 
 READ_ATTEMPTS = 28
 
@@ -83,11 +84,16 @@ def check_complete(path: Path) -> str:
 
 
 def _bounded_fapl(low: int) -> h5py.h5p.PropFAID:
-    fapl = h5py.h5p.create(h5py.h5p.FILE_ACCESS)
-    fapl.set_libver_bounds(low, h5py.h5f.LIBVER_LATEST)
-    setter = _set_read_attempts()
-    if setter is not None:
-        setter(fapl.id, READ_ATTEMPTS)
+    # The HDF5 library h5py bundles is not thread-safe: h5py holds its own lock (``phil``) around every
+    # call into it. The read-attempts setter goes around h5py (ctypes), so it holds that lock too:
+    # without it, a console thread reading one run while another opened one corrupted HDF5's state
+    # ("can't decrement id ref count", a segfault in CI).
+    with phil:
+        fapl = h5py.h5p.create(h5py.h5p.FILE_ACCESS)
+        fapl.set_libver_bounds(low, h5py.h5f.LIBVER_LATEST)
+        setter = _set_read_attempts()
+        if setter is not None:
+            setter(fapl.id, READ_ATTEMPTS)
     return fapl
 
 
