@@ -4,15 +4,18 @@ processes resumes on one and back (issue 27). Small: 16 px, 32 training frames, 
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import shutil
+import signal
 import subprocess
 import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
+from realtime_priority import descendants, processes
 
 from tests.test_model_core import make_split_dir
 
@@ -35,12 +38,27 @@ ARGS = [
 ]
 
 
-def _run(command: list[str]) -> str:
+def _run(command: list[str], timeout_s: float = 240) -> str:
     env = {**os.environ, "OMP_NUM_THREADS": "1", "PYTHONPATH": str(Path(__file__).resolve().parents[1])}
-    done = subprocess.run(command, capture_output=True, text=True, env=env, timeout=240)
-    errors = [line for line in done.stderr.splitlines() if "rror" in line or "terminate" in line or "what()" in line]
-    assert done.returncode == 0, done.stdout[-2000:] + "\n".join(errors[:20])
-    return done.stdout
+    env["PYTHONFAULTHANDLER"] = "1"  # a SIGABRT prints every thread's stack: what a hung launch was doing
+    proc = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+    try:
+        stdout, stderr = proc.communicate(timeout=timeout_s)
+    except subprocess.TimeoutExpired:
+        # hung (seen once in CI, after a resumed two-process run wrote its checkpoint): the launcher and its
+        # workers abort, each printing its threads' stacks, which the failure shows
+        tree: dict[int, list[int]] = {}
+        for pid, _name, ppid, _pgid in processes():
+            tree.setdefault(ppid, []).append(pid)
+        for pid in reversed(descendants(proc.pid, tree)):
+            with contextlib.suppress(OSError):
+                os.kill(pid, signal.SIGABRT)
+        stdout, stderr = proc.communicate(timeout=60)
+        said = f"{stdout[-1500:]}\n{stderr[-8000:]}"
+        raise AssertionError(f"hung for {timeout_s:g} s: {' '.join(command[:8])} ...\n{said}") from None
+    errors = [line for line in stderr.splitlines() if "rror" in line or "terminate" in line or "what()" in line]
+    assert proc.returncode == 0, stdout[-2000:] + "\n".join(errors[:20])
+    return stdout
 
 
 def two_processes(split: Path, out: Path, steps: int, *extra: str) -> str:
