@@ -17,6 +17,11 @@ import os
 from collections.abc import Callable, Iterator
 
 _REAL_TIME = tuple(getattr(os, name) for name in ("SCHED_FIFO", "SCHED_RR") if hasattr(os, name))
+_RESET_ON_FORK = getattr(os, "SCHED_RESET_ON_FORK", 0)  # a flag sched_getscheduler reports with the policy
+
+
+def _policy(tid: int) -> int:
+    return os.sched_getscheduler(tid) & ~_RESET_ON_FORK
 
 
 def _threads() -> list[int]:
@@ -33,18 +38,20 @@ def real_time_threads() -> list[int]:
     found = []
     for tid in _threads():
         try:
-            if os.sched_getscheduler(tid) in _REAL_TIME:
+            if _policy(tid) in _REAL_TIME:
                 found.append(tid)
         except OSError:
             continue  # ended meanwhile
     return found
 
 
-def back_to(policy: int, priority: int) -> int:
-    """Every real-time thread of this process (none of which was wanted) on ``policy`` at ``priority``
-    again; how many were changed."""
+def back_to(policy: int, priority: int, keep: frozenset[int] = frozenset()) -> int:
+    """Every real-time thread of this process but those in ``keep`` (real time before the library ran:
+    someone's choice) on ``policy`` at ``priority`` again; how many were changed."""
     changed = 0
     for tid in real_time_threads():
+        if tid in keep:
+            continue
         try:
             os.sched_setscheduler(tid, policy, os.sched_param(priority))
             changed += 1
@@ -61,11 +68,12 @@ def kept_normal() -> Iterator[Callable[[], int]]:
     if not _REAL_TIME or not hasattr(os, "sched_getscheduler"):
         yield lambda: 0
         return
-    policy, priority = os.sched_getscheduler(0), os.sched_getparam(0).sched_priority
+    policy, priority = _policy(0), os.sched_getparam(0).sched_priority
     if policy in _REAL_TIME:
         yield lambda: 0  # asked for by whoever started us: not ours to change
         return
+    keep = frozenset(real_time_threads())  # threads already real time: chosen by someone, left so
     try:
-        yield lambda: back_to(policy, priority)
+        yield lambda: back_to(policy, priority, keep)
     finally:
-        back_to(policy, priority)
+        back_to(policy, priority, keep)

@@ -116,11 +116,16 @@ def read_with_lerobot(folder: Path, tmp_path: Path, video_backend: str = "torchc
 # LeRobot's writer encodes with SVT-AV1, which switches its process to real-time priority (SCHED_FIFO 99) where
 # it may (as root): for the seconds it encodes it would hold the cores ahead of the realtime tests' devices
 # (common/scheduling.py does it for this project's own export). Without CAP_SYS_NICE it may not, and says so.
-_NO_REAL_TIME = (
-    ["setpriv", "--inh-caps=-sys_nice", "--bounding-set=-sys_nice"]
-    if os.geteuid() == 0 and shutil.which("setpriv")
-    else []
-)
+_SETPRIV = ["setpriv", "--inh-caps=-sys_nice", "--bounding-set=-sys_nice"]
+
+
+@functools.cache
+def _no_real_time() -> list[str]:
+    """The prefix that starts a command without CAP_SYS_NICE, where setpriv can drop it (it needs CAP_SETPCAP)."""
+    if os.geteuid() != 0 or not shutil.which("setpriv"):
+        return []
+    works = subprocess.run([*_SETPRIV, "true"], capture_output=True, timeout=30).returncode == 0
+    return _SETPRIV if works else []
 
 
 def write_with_lerobot(
@@ -139,7 +144,7 @@ def write_with_lerobot(
     extra = {"__names__": np.array(json.dumps(names))} if names else {}
     with open(src, "wb") as f:
         np.savez(f, **arrays, **extra)
-    cmd = [*_NO_REAL_TIME, sys.executable, str(WRITE_SCRIPT), str(folder), str(src), "--fps", str(fps)]
+    cmd = [*_no_real_time(), sys.executable, str(WRITE_SCRIPT), str(folder), str(src), "--fps", str(fps)]
     cmd += ["--vcodec", vcodec] + (["--video"] if video else [])
     done = subprocess.run(cmd, env=reader_env(tmp_path, "pyav"), capture_output=True, text=True, timeout=READ_TIMEOUT_S)
     if done.returncode != 0:

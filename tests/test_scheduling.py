@@ -22,6 +22,7 @@ def _switched_thread(started: threading.Event, done: threading.Event, tids: list
     done.wait(10)
 
 
+@pytest.mark.realtime  # in the lane: a lowering by the lane (tests/realtime_priority.py) would put it back first
 def test_threads_a_library_switched_to_real_time_are_put_back():
     started, done, tids = threading.Event(), threading.Event(), []
     worker = threading.Thread(target=_switched_thread, args=(started, done, tids), daemon=True)

@@ -315,6 +315,7 @@ def test_a_socket_port_closes_at_once_and_waits_only_before_reopening_the_same_a
     port closes without it (the peer sees the end at once), and only a reopen of that address by this
     process waits out the rest of the pause, as pyserial meant it (a serial server may take one client)."""
     import socket
+    import types
 
     import serial.urlhandler.protocol_socket as pyserial_socket
 
@@ -335,7 +336,8 @@ def test_a_socket_port_closes_at_once_and_waits_only_before_reopening_the_same_a
         raise AssertionError(f"pyserial's own pause ({dt_s} s) was taken")
 
     monkeypatch.setattr(serial_link, "_REAL", Clock())
-    monkeypatch.setattr(pyserial_socket.time, "sleep", no_sleep)
+    monkeypatch.setattr(serial_link, "_socket_closed_at", {})
+    monkeypatch.setattr(pyserial_socket, "time", types.SimpleNamespace(sleep=no_sleep))  # pyserial's module only
     with socket.create_server(("127.0.0.1", 0)) as server:
         url = f"socket://127.0.0.1:{server.getsockname()[1]}"
         port = serial_link.open_port(url, baudrate=9600, timeout_s=0.5, device="test")

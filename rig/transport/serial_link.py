@@ -16,6 +16,7 @@ import threading
 from typing import Callable
 
 import serial
+from serial.urlhandler.protocol_socket import Serial as SocketPort
 
 from rig.clock import SystemClock
 from rig.errors import DeviceDisconnected, DeviceTimeout
@@ -56,9 +57,14 @@ class TrackedPort:
         object.__setattr__(self, "bytes_written", 0)
         object.__setattr__(self, "_exclusive_tty", exclusive_tty)  # TIOCEXCL set: cleared at close
 
+    def _plain_socket(self) -> socket.socket | None:
+        """The socket of a ``socket://`` port (pyserial's raw TCP handler), else None. An
+        ``rfc2217://`` port has one too, but its bytes are escaped and read by pyserial's own thread."""
+        return self._port._socket if isinstance(self._port, SocketPort) else None
+
     @property
     def in_waiting(self) -> int:
-        sock = getattr(self._port, "_socket", None)
+        sock = self._plain_socket()
         if sock is None:
             return retry_eintr(lambda: self._port.in_waiting)
         try:
@@ -91,9 +97,11 @@ class TrackedPort:
         return n
 
     def _raw_fd(self) -> int | None:
-        sock = getattr(self._port, "_socket", None)
+        sock = self._plain_socket()
         if sock is not None:
             return sock.fileno()
+        if isinstance(self._port, SocketPort) or hasattr(self._port, "_socket"):
+            return None  # closed, or rfc2217 (its writes escape 0xFF): pyserial's own write
         fd = getattr(self._port, "fd", None)
         return fd if isinstance(fd, int) else None
 
@@ -120,19 +128,19 @@ class TrackedPort:
         fd = getattr(self._port, "fd", None)
         if self._exclusive_tty and isinstance(fd, int):
             exclusive.let_go(fd)
-        sock = getattr(self._port, "_socket", None)
+        sock = self._plain_socket()
         if sock is None:
             self._port.close()
             return
-        try:  # pyserial's socket close, less its pause (RECONNECT_PAUSE_S)
-            sock.shutdown(socket.SHUT_RDWR)
-        except OSError:
-            pass  # the peer went first
-        finally:
-            sock.close()
-            self._port._socket = None
-            self._port.is_open = False
-            _socket_closed_at[self._url] = _REAL.now()
+        # pyserial's socket close, less its pause (RECONNECT_PAUSE_S)
+        self._port.is_open = False
+        self._port._socket = None
+        _socket_closed_at[self._url] = _REAL.now()
+        for end in (lambda: sock.shutdown(socket.SHUT_RDWR), sock.close):
+            try:
+                end()
+            except OSError:
+                pass  # the peer went first; pyserial ignores these too
 
     def __getattr__(self, name):
         return getattr(self._port, name)
@@ -151,8 +159,9 @@ def open_port(url: str, *, baudrate: int, timeout_s: float, device: str) -> Trac
         peer = peers.lookup(url)
         write_timeout_s = max(timeout_s, peer.stall_limit_s) if peer is not None else timeout_s
         options = {"exclusive": True} if lock else {}
-        if url in _socket_closed_at:  # closed by this process a moment ago: the pause pyserial would have made
-            _REAL.sleep(_socket_closed_at.pop(url) + RECONNECT_PAUSE_S - _REAL.now())
+        closed_at = _socket_closed_at.pop(url, None)
+        if closed_at is not None:  # closed by this process a moment ago: the pause pyserial would have made
+            _REAL.sleep(closed_at + RECONNECT_PAUSE_S - _REAL.now())
         port = serial.serial_for_url(
             url, baudrate=baudrate, timeout=timeout_s, write_timeout=write_timeout_s, **options
         )
