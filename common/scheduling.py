@@ -24,6 +24,11 @@ def _policy(tid: int) -> int:
     return os.sched_getscheduler(tid) & ~_RESET_ON_FORK
 
 
+def is_real_time(tid: int) -> bool:
+    """Whether thread ``tid`` (any process's, Linux) runs on a real-time policy; OSError when it has ended."""
+    return bool(_REAL_TIME) and _policy(tid) in _REAL_TIME
+
+
 def _threads() -> list[int]:
     try:
         return [int(tid) for tid in os.listdir("/proc/self/task")]
@@ -38,7 +43,7 @@ def real_time_threads() -> list[int]:
     found = []
     for tid in _threads():
         try:
-            if _policy(tid) in _REAL_TIME:
+            if is_real_time(tid):
                 found.append(tid)
         except OSError:
             continue  # ended meanwhile

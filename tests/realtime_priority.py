@@ -30,6 +30,8 @@ from pathlib import Path
 
 from xdist.scheduler import LoadScopeScheduling
 
+from common.scheduling import is_real_time
+
 OTHERS_NICE = 19  # the lowest priority: CFS weight 15 against a default task's 1024
 LANES = 1  # at most (two lanes were tried: a realtime test beside another failed in 2 of 5 full runs)
 UNIT = "realtime"  # the scheduler's name of a lane's unit: realtime-0, realtime-1
@@ -74,7 +76,7 @@ def processes() -> list[tuple[int, str, int, int]]:
     return out
 
 
-def _children() -> dict[int, list[int]]:
+def process_tree() -> dict[int, list[int]]:
     """Every process's children (pid -> child pids)."""
     tree: dict[int, list[int]] = {}
     for pid, _name, ppid, _pgid in processes():
@@ -101,7 +103,7 @@ def lower(pids: list[int], nice: int = OTHERS_NICE) -> int:
             continue  # ended meanwhile
         for tid in tids:
             try:
-                if os.sched_getscheduler(tid) in (os.SCHED_FIFO, os.SCHED_RR):
+                if is_real_time(tid):
                     # a library switched it to real time (SVT-AV1 does, as root: common/scheduling.py):
                     # ahead of every normal thread whatever its nice value
                     os.sched_setscheduler(tid, os.SCHED_OTHER, os.sched_param(0))
@@ -129,7 +131,7 @@ def lower_other_workers(folder: Path) -> int:
             others.append(pid)
     if not others:
         return 0
-    tree = _children()
+    tree = process_tree()
     return lower([p for pid in others for p in descendants(pid, tree)])
 
 
@@ -161,7 +163,7 @@ def lower_myself() -> int:
     if _lowered_myself:
         return 0
     _lowered_myself = True
-    return lower(descendants(os.getpid(), _children()))
+    return lower(descendants(os.getpid(), process_tree()))
 
 
 def lanes(nodeids: set[str], count: int) -> dict[str, str]:

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from realtime_priority import descendants, processes
+from realtime_priority import descendants, process_tree
 
 from tests.test_model_core import make_split_dir
 
@@ -47,10 +47,7 @@ def _run(command: list[str], timeout_s: float = 240) -> str:
     except subprocess.TimeoutExpired:
         # hung (seen once in CI, after a resumed two-process run wrote its checkpoint): the launcher and its
         # workers abort, each printing its threads' stacks, which the failure shows
-        tree: dict[int, list[int]] = {}
-        for pid, _name, ppid, _pgid in processes():
-            tree.setdefault(ppid, []).append(pid)
-        for pid in reversed(descendants(proc.pid, tree)):
+        for pid in reversed(descendants(proc.pid, process_tree())):
             with contextlib.suppress(OSError):
                 os.kill(pid, signal.SIGABRT)
         stdout, stderr = proc.communicate(timeout=60)

@@ -100,8 +100,8 @@ class TrackedPort:
         sock = self._plain_socket()
         if sock is not None:
             return sock.fileno()
-        if isinstance(self._port, SocketPort) or hasattr(self._port, "_socket"):
-            return None  # closed, or rfc2217 (its writes escape 0xFF): pyserial's own write
+        if hasattr(self._port, "_socket"):
+            return None  # a closed socket:// port, or rfc2217 (its writes escape 0xFF): pyserial's own write
         fd = getattr(self._port, "fd", None)
         return fd if isinstance(fd, int) else None
 
