@@ -141,7 +141,7 @@ def train(
 
     Several GPUs: `accelerate launch -m cli.model_app --data ... --out ...` runs this same command.
     """
-    from model.training.train_job import TrainOptions
+    from model.training.train_job import TrainOptions, end_process
     from model.training.train_job import train as run_training
 
     options = TrainOptions(
@@ -172,6 +172,7 @@ def train(
     trained = run_training(options, log=typer.echo)
     if trained.is_main:
         typer.echo(f"checkpoint: {trained.checkpoint}")
+    end_process(trained)
 
 
 def main() -> None:

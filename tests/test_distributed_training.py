@@ -119,3 +119,27 @@ def test_the_processes_shares_of_a_step_are_disjoint_and_make_the_global_batch()
         assert not shares[0] & shares[1] and shares[0] | shares[1] == set(t.batch_indices(step).tolist())
     epoch = [set(np.concatenate([t.share(s, rank) for s in range(4)]).tolist()) for rank in (0, 1)]
     assert len(epoch[0]) == len(epoch[1]) == 16 and not epoch[0] & epoch[1]
+
+
+@pytest.mark.parametrize("processes", [1, 2])
+def test_a_run_on_several_processes_ends_its_process_with_what_it_said_and_frees_nothing(processes):
+    """``end_process``: one process returns; several end at once (exit status 0) with their buffered
+    output flushed and no destructor run (freeing gloo's process group deadlocked with its worker threads,
+    which is why the trainer is kept)."""
+    script = (
+        "import sys\n"
+        "from model.training.train_job import Trained, end_process\n"
+        "class Kept:\n"
+        "    def __del__(self): print('freed', flush=True)\n"
+        f"trained = Trained(None, True, {processes}, kept=Kept())\n"
+        "sys.stdout.write('said, not flushed')\n"
+        "end_process(trained)\n"
+        "print(' and returned')\n"
+    )
+    root = Path(__file__).resolve().parents[1]
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, cwd=root, timeout=60)
+    assert done.returncode == 0, done.stderr
+    if processes == 1:
+        assert done.stdout.startswith("said, not flushed and returned") and "freed" in done.stdout
+    else:
+        assert done.stdout == "said, not flushed"

@@ -9,7 +9,7 @@ of itself); the checkpoint folder comes back for the command to print.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
@@ -49,6 +49,8 @@ class Trained:
 
     checkpoint: Path | None
     is_main: bool
+    processes: int = 1
+    kept: object = field(default=None, repr=False, compare=False)  # several processes: the trainer, never freed
 
 
 def train(opts: TrainOptions, log: Callable[[str], None]) -> Trained:
@@ -117,20 +119,28 @@ def train(opts: TrainOptions, log: Callable[[str], None]) -> Trained:
             f"{len(trainer.data)} training items (its share of each step's batch)"
         )
     saved = trainer.save()
-    if trainer.acc.num_processes > 1:
-        _leave_process_group(trainer)
-    return Trained(saved, trainer.is_main)
+    if trainer.acc.num_processes == 1:
+        return Trained(saved, trainer.is_main)
+    trainer.acc.wait_for_everyone()  # every process here: the checkpoint is written
+    return Trained(saved, trainer.is_main, trainer.acc.num_processes, kept=trainer)
 
 
-def _leave_process_group(trainer) -> None:
-    """Every process done, the process group taken down before the interpreter exits: left to exit,
-    gloo's threads were destroyed while joinable and a process ended in SIGABRT ("terminate called
-    without an active exception") after its checkpoint was written."""
-    import torch.distributed as dist
+def end_process(trained: Trained) -> None:
+    """A run on several processes ends its process here, once what it says is said: ``os._exit(0)``
+    with nothing torn down (hence ``Trained.kept``). Freeing the DDP model frees gloo's process group,
+    whose destructor joins gloo's worker threads while holding the GIL; a worker still freeing the last
+    barrier's work (which holds the step's reduced loss, a Python tensor) waits for the GIL: a deadlock,
+    seen in CI and in 1 of ~20 launches under load. Left to the interpreter's exit instead, gloo's threads
+    were destroyed while joinable (SIGABRT, "terminate called without an active exception"). One process:
+    returns."""
+    if trained.processes == 1:
+        return
+    import os
+    import sys
 
-    trainer.acc.wait_for_everyone()
-    if dist.is_available() and dist.is_initialized():
-        dist.destroy_process_group()
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(0)
 
 
 def describe(model_cfg, trainer) -> str:
