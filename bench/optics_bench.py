@@ -23,11 +23,15 @@ contact solver and renderer) without noise, twice:
 - frame-blind (the headline): at the published centre (``touch_center_x/y_px`` through
   ``pose_of_pixel``) and the depth at which the solver's own contact for the 4 mm ball has the
   published touch radius (the calibrator's bisection on the solver's contact radius,
-  sqrt(contact area / π); ~15 solves once per press, independent of the light). Nothing of the press's frame
-  is used. The GelSight Mini's published radii are ~1.5× the visible contact (data README): its
-  blind depth is then deeper than the real press, and the blind rows carry that (printed below the
-  table, with the published radii beyond the widest contact the ball can make, placed at the depth
-  limit);
+  sqrt(contact area / π); ~15 solves once per press, independent of the light), both registered
+  by the calibration presses (``sensor_sim/registration.py``: the median offset of where the
+  calibration found its presses from their published centres, and the median ratio of their
+  contact radii to the published ones, each kept only where leaving calibration presses out says it
+  predicts better than the labels as given; a press labelled wider than the widest contact the ball
+  makes in the solver is left out of the ratio). Nothing of the held-out press's frame is used. The
+  GelSight Mini's published radii are ~1.5–2× the visible contact (data README), which the
+  registration's ratio takes out; "blind as published" beside it is the same render at the labels
+  as given (near / centre), the headline of the rounds before;
 - located: found in its own frame and refined under the fitted light (what a rig knows from its
   pose; ``locate_press``), as before.
 
@@ -77,6 +81,7 @@ from optics_scoring import (
     goals,
     load,
     near_goal,
+    registration_of,
     score_held_out,
     summarise,
 )
@@ -182,6 +187,10 @@ def write_sheet(sensor: Sensor, renders: dict[int, np.ndarray], folder: Path) ->
     return f"sheet: {out} ({', '.join(f'{label} {sensor.files[i]}' for label, i in picks)})"
 
 
+def registration_cell(reg) -> str:
+    return f"{reg.dx_px:+.1f}, {reg.dy_px:+.1f}, ×{reg.radius_scale:.2f}"
+
+
 def depth_note(sensor: Sensor, blind: Blind, pairs: dict[int, PressScore]) -> str:
     """The blind depths against the located ones (held-out presses, the last row that held each out)."""
     idx = sorted(pairs)
@@ -191,16 +200,16 @@ def depth_note(sensor: Sensor, blind: Blind, pairs: dict[int, PressScore]) -> st
     located_d = np.array([pairs[i].depth_mm for i in idx])
     ratio = float(np.median(published / located_r))
     line = (
-        f"- {sensor.name}: blind depth {blind_d.min():.2f}–{blind_d.max():.2f} mm (mean {blind_d.mean():.2f}) from the "
-        f"published radii {published.min():.0f}–{published.max():.0f} px; located {located_d.min():.2f}–"
+        f"- {sensor.name}: depth as published {blind_d.min():.2f}–{blind_d.max():.2f} mm (mean {blind_d.mean():.2f}) "
+        f"from the published radii {published.min():.0f}–{published.max():.0f} px; located {located_d.min():.2f}–"
         f"{located_d.max():.2f} mm (mean {located_d.mean():.2f}); published radius / located contact radius: median "
         f"×{ratio:.2f}; depth search {blind.seconds:.2f} s for {len(blind.depths)} presses"
     )
     if ratio > 1.2:
         line += (
             f". The published radii are ×{ratio:.2f} the located contact's (the solver's at the refined depth; the "
-            "data README: ~1.5× the visible contact on the GelSight Mini): the blind placement presses deeper and "
-            "wider than the real press, and its rows carry that"
+            "data README: ~1.5× the visible contact on the GelSight Mini): placed as published, a press is deeper and "
+            "wider than the real press (the registration's radius ratio, where taken, corrects it)"
         )
     beyond = [sensor.files[i].removesuffix(".png") for i in idx if sensor.published[i][2] > blind.widest_px]
     if beyond:
@@ -227,8 +236,9 @@ def main() -> None:
     header = (
         ["sensor", "calibration", "k", "presses", "held out"]
         + [f"blind {c}" for c in placement]
+        + ["blind as published near / centre"]
         + [f"located {c}" for c in placement]
-        + ["depth mm blind / located", "fit s", "goals blind", "goals located"]
+        + ["depth mm blind / located", "registration dx, dy px, radius", "fit s", "goals blind", "goals located"]
     )
     print("| " + " | ".join(header) + " |")
     print("|" + "---|" * len(header), flush=True)
@@ -261,7 +271,9 @@ def main() -> None:
             )
             fit_s = time.perf_counter() - t0
             held = [i for i in everyone if i not in chosen]
-            blind_scores, located_scores, renders = score_held_out(sensor, fit, held, gel, blind)
+            reg = registration_of(sensor, fit, chosen, blind)
+            blind_scores, located_scores, renders = score_held_out(sensor, fit, held, gel, blind, reg)
+            as_published = summarise(score_held_out(sensor, fit, held, gel, blind, located=False)[0])
             located_of.update(zip(held, located_scores))
             b, loc = summarise(blind_scores), summarise(located_scores)
             goal = near_goal(name, selection, k)
@@ -269,7 +281,8 @@ def main() -> None:
             l_met, l_text = goals(loc, goal)
             met_rows.append((name, f"{selection} k={k}", b_met, l_met))
             cells = [name, selection, str(k), ", ".join(sensor.files[i].removesuffix(".png") for i in chosen)]
-            cells += [str(len(held)), *b.cells(), *loc.cells(), f"{b.depth_mm:.2f} / {loc.depth_mm:.2f}"]
+            cells += [str(len(held)), *b.cells(), f"{as_published.near:.0%} / {as_published.centre:.0%}"]
+            cells += [*loc.cells(), f"{b.depth_mm:.2f} / {loc.depth_mm:.2f}", registration_cell(reg)]
             cells += [f"{fit_s:.1f}", b_text, l_text]
             print("| " + " | ".join(cells) + " |", flush=True)
             if (selection, k) == ("spread", 5) or selection.startswith("leave"):

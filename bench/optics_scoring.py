@@ -24,6 +24,7 @@ from sensor_sim.calibration import Contact, Press, locate_press, provisional_pro
 from sensor_sim.elastomer import Elastomer
 from sensor_sim.press_fitter import PressFitter
 from sensor_sim.press_render import PressRender
+from sensor_sim.registration import Registration, fit_registration
 
 MM_PER_PX = 0.0295  # as given by the data's publisher, approximate
 BALL_RADIUS_MM = 2.0  # Taxim's calibration ball (~4 mm diameter)
@@ -132,21 +133,36 @@ def score(sensor: Sensor, i: int, rendered: np.ndarray, contact: tuple[float, fl
     )
 
 
-def score_held_out(sensor: Sensor, fit, held: list[int], gel: Elastomer, blind: Blind):
-    """(blind scores, located scores, blind renders) of the held-out presses under ``fit``'s light."""
+def score_held_out(sensor: Sensor, fit, held: list[int], gel: Elastomer, blind: Blind, registration=None, located=True):
+    """(blind scores, located scores, blind renders) of the held-out presses under ``fit``'s light; blind at
+    the labels ``registration`` corrects (None: as published); ``located`` False: no located renders ([])."""
     profile = provisional_profile(sensor.background, MM_PER_PX, gel, fit.light)
     press = PressRender(profile, sphere(2 * BALL_RADIUS_MM))
+    reg = registration or Registration()
     blind_scores, located_scores, renders = [], [], {}
     for i in held:
-        cx, cy, touch = sensor.published[i]
-        depth = blind.depth(sensor.published[i])
+        cx, cy, touch = reg.place(*sensor.published[i])
+        depth = blind.depth((cx, cy, touch))
         renders[i] = press.render(press.pose_of_pixel(cx, cy, -depth))
         blind_scores.append(score(sensor, i, renders[i], (cx, cy, touch), depth))
+        if not located:
+            continue
         c = locate_press(sensor.background, Press(sensor.images[i], BALL_RADIUS_MM), MM_PER_PX, fit.light, gel=gel)
-        located = press.render(press.pose_of_pixel(c.centre_x_px, c.centre_y_px, -float(c.depth_mm or 0.0)))
+        located_render = press.render(press.pose_of_pixel(c.centre_x_px, c.centre_y_px, -float(c.depth_mm or 0.0)))
         found = (c.centre_x_px, c.centre_y_px, c.radius_px)
-        located_scores.append(score(sensor, i, located, found, float(c.depth_mm or 0.0)))
+        located_scores.append(score(sensor, i, located_render, found, float(c.depth_mm or 0.0)))
     return blind_scores, located_scores, renders
+
+
+def registration_of(sensor: Sensor, fit, chosen: list[int], blind: Blind) -> Registration:
+    """The calibration presses' labels against where the calibration found them (``fit.contacts``); labels
+    wider than the solver's widest contact for the ball left out of the radius ratio."""
+    return fit_registration(
+        [sensor.published[i] for i in chosen],
+        [(c.centre_x_px, c.centre_y_px, c.radius_px) for c in fit.contacts],
+        [sensor.files[i] for i in chosen],
+        reach_px=blind.widest_px,
+    )
 
 
 @dataclass
