@@ -36,6 +36,7 @@ def one_line_errors(fn):
         from cli.one_line import passes_through, unexpected
         from common.errors import ToolError
         from model.denoiser.checkpoint import CheckpointError
+        from model.training.train_job import end_failed_process
 
         try:
             return fn(*args, **kwargs)
@@ -45,7 +46,11 @@ def one_line_errors(fn):
             if passes_through(exc):
                 raise
             message = unexpected(exc, "model")
+        except KeyboardInterrupt:  # one of several training processes: ends at once (train_job.end_failed_process)
+            end_failed_process(130)
+            raise
         typer.secho(f"error: {message}", fg=typer.colors.RED, err=True)
+        end_failed_process(1)
         raise typer.Exit(1)
 
     return wrapper

@@ -143,3 +143,55 @@ def test_a_run_on_several_processes_ends_its_process_with_what_it_said_and_frees
         assert done.stdout.startswith("said, not flushed and returned") and "freed" in done.stdout
     else:
         assert done.stdout == "said, not flushed"
+
+
+def test_a_failed_process_of_a_run_on_several_processes_says_one_line_and_ends_at_once():
+    """With a process group up, a command's error is its one red line, then ``os._exit(1)`` (nothing freed,
+    as ``end_process``); a Ctrl-C, 130. Without one, the usual ``typer.Exit(1)``."""
+    script = (
+        "import sys\n"
+        "import torch.distributed as dist\n"
+        "from cli.model_options import one_line_errors\n"
+        "if sys.argv[1] == 'group':\n"
+        "    dist.init_process_group('gloo', rank=0, world_size=1, store=dist.HashStore())\n"
+        "class Kept:\n"
+        "    def __del__(self): print('freed', flush=True)\n"
+        "kept = Kept()\n"
+        "@one_line_errors\n"
+        "def command():\n"
+        "    sys.stdout.write('said, not flushed')\n"
+        "    raise KeyboardInterrupt if sys.argv[2] == 'ctrl-c' else ValueError('data/split: no such split')\n"
+        "try:\n"
+        "    command()\n"
+        "except BaseException as exc:\n"
+        "    print(f' then {type(exc).__name__}')\n"
+    )
+    root = Path(__file__).resolve().parents[1]
+
+    def run(*args: str) -> subprocess.CompletedProcess:
+        command = [sys.executable, "-c", script, *args]
+        return subprocess.run(command, capture_output=True, text=True, cwd=root, timeout=120)
+
+    failed = run("group", "error")
+    assert (failed.returncode, failed.stdout) == (1, "said, not flushed"), failed.stderr
+    assert failed.stderr.strip() == "error: data/split: no such split"
+    stopped = run("group", "ctrl-c")
+    assert (stopped.returncode, stopped.stdout) == (130, "said, not flushed"), stopped.stderr
+    alone = run("alone", "error")
+    assert alone.returncode == 0 and alone.stdout.startswith("said, not flushed then Exit") and "freed" in alone.stdout
+
+
+def test_the_train_command_ends_a_run_on_several_processes_through_end_process(monkeypatch, tmp_path):
+    """``train`` hands what training returned to ``end_process`` (which a two-process run leaves by)."""
+    from typer.testing import CliRunner
+
+    import model.training.train_job as job
+    from cli.model_app import app
+
+    ended = []
+    trained = job.Trained(tmp_path / "checkpoint", True, 2, kept=object())
+    monkeypatch.setattr(job, "train", lambda options, log: trained)
+    monkeypatch.setattr(job, "end_process", ended.append)
+    result = CliRunner().invoke(app, ["--data", str(tmp_path), "--out", str(tmp_path / "out")])
+    assert result.exit_code == 0, result.output
+    assert ended == [trained] and f"checkpoint: {tmp_path / 'checkpoint'}" in result.output

@@ -133,14 +133,28 @@ def end_process(trained: Trained) -> None:
     seen in CI and in 1 of ~20 launches under load. Left to the interpreter's exit instead, gloo's threads
     were destroyed while joinable (SIGABRT, "terminate called without an active exception"). One process:
     returns."""
-    if trained.processes == 1:
-        return
+    if trained.processes > 1:
+        _exit_now(0)
+
+
+def end_failed_process(code: int) -> None:
+    """A process of a run on several processes that failed (an error said, Ctrl-C) ends here the same way,
+    ``os._exit(code)``: left to the interpreter, the model and the process group it holds would be freed
+    as above. Returns when no process group is up (one process: the usual way out)."""
+    import sys
+
+    dist = sys.modules.get("torch.distributed")  # never imports torch: a group is up only if it was imported
+    if dist is not None and dist.is_available() and dist.is_initialized():
+        _exit_now(code)
+
+
+def _exit_now(code: int) -> None:
     import os
     import sys
 
     sys.stdout.flush()
     sys.stderr.flush()
-    os._exit(0)
+    os._exit(code)
 
 
 def describe(model_cfg, trainer) -> str:
