@@ -27,11 +27,12 @@ contact solver and renderer) without noise, twice:
   by the calibration presses (``sensor_sim/registration.py``: the median offset of where the
   calibration found its presses from their published centres, and the median ratio of their
   contact radii to the published ones, each kept only where leaving calibration presses out says it
-  predicts better than the labels as given; a press labelled wider than the widest contact the ball
-  makes in the solver is left out of the ratio). Nothing of the held-out press's frame is used. The
+  predicts better than the labels as given, from three presses or more; the offset only from presses
+  that pass the spread rule below; a press labelled wider than the widest contact the ball makes in the
+  solver is left out of the ratio). Nothing of the held-out press's frame is used. The
   GelSight Mini's published radii are ~1.5–2× the visible contact (data README), which the
   registration's ratio takes out; "blind as published" beside it is the same render at the labels
-  as given (near / centre), the headline of the rounds before;
+  as given (near / centre / red std ratio), the headline of the rounds before;
 - located: found in its own frame and refined under the fitted light (what a rig knows from its
   pose; ``locate_press``), as before.
 
@@ -39,11 +40,14 @@ Each is compared with the real frame (MAE, 0–255, all channels). Per row and p
 the mean MAE within 1.5 published touch radii of the published centre over the held-out presses
 against the background-only frame's mean there; the worst press's ratio; on how many presses
 the whole-frame MAE is below the background's; "centre", the mean MAE within 0.4 contact radii of
-the placed contact's centre (blind: the published centre and radius; located: the found ones)
-against the background-only frame's mean in the same discs (where a sector seam or a bright spot
-of the light tables would show); "red change", inside the published contact disc the mean change
-of the red channel from the background, real and rendered: the standard deviation across the
-held-out presses, render / real (their ratio), and their correlation (three presses or more).
+the located contact's centre against the background-only frame's mean in the same discs (where a
+sector seam or a bright spot of the light tables would show): the same discs for every placement,
+since the real contact's centre is where the press's own frame shows it (its frame scores the blind
+renders, as it always does, and never places them; the rounds before 2026-11-30 scored blind
+renders in the published disc, which moves with the labels); "red change", inside the published
+contact disc the mean change of the red channel from the background, real and rendered: the
+standard deviation across the held-out presses, render / real (their ratio), and their correlation
+(three presses or more).
 Goals (issue 40), printed under the table with which each row meets: near the contact, spread
 five ≤ 15 %, every spread triple ≤ 22 %, one quadrant ≤ 25 %; centre ≤ 25 %; the whole frame
 below the background on every press; the render's red-change std within 25 % of the real's.
@@ -90,6 +94,7 @@ from common.machine import describe
 from sensor_sim.calibration import Press, fit_optics
 from sensor_sim.calibration_report import sheet_header, sheet_row
 from sensor_sim.elastomer import Elastomer
+from sensor_sim.registration import Registration
 
 SENSORS = ("gelsight_mini", "gelsight")
 QUADRANTS = ("top-left", "top-right", "bottom-left", "bottom-right")
@@ -236,7 +241,7 @@ def main() -> None:
     header = (
         ["sensor", "calibration", "k", "presses", "held out"]
         + [f"blind {c}" for c in placement]
-        + ["blind as published near / centre"]
+        + ["blind as published near / centre / red std ratio"]
         + [f"located {c}" for c in placement]
         + ["depth mm blind / located", "registration dx, dy px, radius", "fit s", "goals blind", "goals located"]
     )
@@ -272,8 +277,9 @@ def main() -> None:
             fit_s = time.perf_counter() - t0
             held = [i for i in everyone if i not in chosen]
             reg = registration_of(sensor, fit, chosen, blind)
-            blind_scores, located_scores, renders = score_held_out(sensor, fit, held, gel, blind, reg)
-            as_published = summarise(score_held_out(sensor, fit, held, gel, blind, located=False)[0])
+            placements = {"registered": reg, "as published": Registration()}
+            blinds, located_scores, renders = score_held_out(sensor, fit, held, gel, blind, placements)
+            blind_scores, as_published = blinds["registered"], summarise(blinds["as published"])
             located_of.update(zip(held, located_scores))
             b, loc = summarise(blind_scores), summarise(located_scores)
             goal = near_goal(name, selection, k)
@@ -281,7 +287,8 @@ def main() -> None:
             l_met, l_text = goals(loc, goal)
             met_rows.append((name, f"{selection} k={k}", b_met, l_met))
             cells = [name, selection, str(k), ", ".join(sensor.files[i].removesuffix(".png") for i in chosen)]
-            cells += [str(len(held)), *b.cells(), f"{as_published.near:.0%} / {as_published.centre:.0%}"]
+            red = f"{as_published.red_ratio:.2f}" if as_published.n >= 2 else "n/a"
+            cells += [str(len(held)), *b.cells(), f"{as_published.near:.0%} / {as_published.centre:.0%} / {red}"]
             cells += [*loc.cells(), f"{b.depth_mm:.2f} / {loc.depth_mm:.2f}", registration_cell(reg)]
             cells += [f"{fit_s:.1f}", b_text, l_text]
             print("| " + " | ".join(cells) + " |", flush=True)

@@ -100,7 +100,7 @@ class PressScore:
     near_bg: float  # the background-only frame's there
     whole: float
     whole_bg: float
-    centre: float  # MAE within CENTRE_RADII of the placed contact's radius of its centre
+    centre: float  # MAE within CENTRE_RADII of the located contact's radius of its centre
     centre_bg: float
     red: float  # mean red change from the background inside the published disc, the render's
     red_real: float  # the real frame's
@@ -109,6 +109,7 @@ class PressScore:
 
 
 def score(sensor: Sensor, i: int, rendered: np.ndarray, contact: tuple[float, float, float], depth: float):
+    """``rendered`` against press ``i``'s real frame; "centre" in the disc of ``contact`` (x, y, radius px)."""
     real = sensor.images[i].astype(np.float32)
     bg = sensor.background.astype(np.float32)
     ys, xs = np.mgrid[0 : bg.shape[0], 0 : bg.shape[1]]
@@ -133,35 +134,40 @@ def score(sensor: Sensor, i: int, rendered: np.ndarray, contact: tuple[float, fl
     )
 
 
-def score_held_out(sensor: Sensor, fit, held: list[int], gel: Elastomer, blind: Blind, registration=None, located=True):
-    """(blind scores, located scores, blind renders) of the held-out presses under ``fit``'s light; blind at
-    the labels ``registration`` corrects (None: as published); ``located`` False: no located renders ([])."""
+def score_held_out(sensor: Sensor, fit, held: list[int], gel: Elastomer, blind: Blind, placements: dict):
+    """({name: blind scores} for each of ``placements`` (name → Registration of the labels), the located
+    scores, the first placement's blind renders) of the held-out presses under ``fit``'s light. Every
+    placement's "centre" is scored in the same disc, the located contact's (the press's own frame says
+    where its contact is; it scores every placement and places only the located one)."""
     profile = provisional_profile(sensor.background, MM_PER_PX, gel, fit.light)
     press = PressRender(profile, sphere(2 * BALL_RADIUS_MM))
-    reg = registration or Registration()
-    blind_scores, located_scores, renders = [], [], {}
+    blind_scores: dict[str, list[PressScore]] = {name: [] for name in placements}
+    located_scores, renders = [], {}
     for i in held:
-        cx, cy, touch = reg.place(*sensor.published[i])
-        depth = blind.depth((cx, cy, touch))
-        renders[i] = press.render(press.pose_of_pixel(cx, cy, -depth))
-        blind_scores.append(score(sensor, i, renders[i], (cx, cy, touch), depth))
-        if not located:
-            continue
         c = locate_press(sensor.background, Press(sensor.images[i], BALL_RADIUS_MM), MM_PER_PX, fit.light, gel=gel)
-        located_render = press.render(press.pose_of_pixel(c.centre_x_px, c.centre_y_px, -float(c.depth_mm or 0.0)))
         found = (c.centre_x_px, c.centre_y_px, c.radius_px)
-        located_scores.append(score(sensor, i, located_render, found, float(c.depth_mm or 0.0)))
+        for k, (name, reg) in enumerate(placements.items()):
+            cx, cy, touch = reg.place(*sensor.published[i])
+            depth = blind.depth((cx, cy, touch))
+            rendered = press.render(press.pose_of_pixel(cx, cy, -depth))
+            if k == 0:
+                renders[i] = rendered
+            blind_scores[name].append(score(sensor, i, rendered, found, depth))
+        located = press.render(press.pose_of_pixel(c.centre_x_px, c.centre_y_px, -float(c.depth_mm or 0.0)))
+        located_scores.append(score(sensor, i, located, found, float(c.depth_mm or 0.0)))
     return blind_scores, located_scores, renders
 
 
 def registration_of(sensor: Sensor, fit, chosen: list[int], blind: Blind) -> Registration:
     """The calibration presses' labels against where the calibration found them (``fit.contacts``); labels
-    wider than the solver's widest contact for the ball left out of the radius ratio."""
+    wider than the solver's widest contact for the ball left out of the radius ratio; the centre offset
+    only from presses that pass the calibrator's spread rule (on the published centres)."""
     return fit_registration(
         [sensor.published[i] for i in chosen],
         [(c.centre_x_px, c.centre_y_px, c.radius_px) for c in fit.contacts],
         [sensor.files[i] for i in chosen],
         reach_px=blind.widest_px,
+        spread=blind.spread(sensor, chosen),
     )
 
 

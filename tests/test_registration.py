@@ -50,6 +50,7 @@ def test_a_correction_that_does_not_predict_the_press_left_out_is_not_taken():
         ([(1.0, 2.0, 100.0)], r"p0: located contact radius is ×0.10 the labelled one, expected ×0.25 to ×4"),
         ([(1.0, 2.0)], r"p0: label: expected \(centre x, centre y, radius\) px, got 2 values"),
         ([(1.0, 2.0, 3.0), (1.0, 2.0, 3.0)], "2 labelled presses but 1 located"),
+        ([(1.0, "x", 3.0)], r"p0: label: expected numbers \(centre x, centre y, radius\) px, got \(1.0, 'x', 3.0\)"),
     ],
 )
 def test_labels_that_cannot_be_registered_are_one_line_naming_the_press(labels, message):
@@ -85,9 +86,34 @@ def test_labels_registered_on_three_found_presses_place_a_new_press_where_its_fr
 
 def test_a_press_labelled_wider_than_the_ball_can_reach_says_nothing_of_the_radius():
     """Three presses labelled beyond the solver's widest contact (64.5 px; their located contacts capped
-    below it) and two labelled at twice their contact: the ratio comes from the two within reach."""
-    located = [(100.0, 80.0, 20.0), (200.0, 60.0, 25.0), (150.0, 150.0, 64.0), (60.0, 190.0, 64.2), (9.0, 9.0, 64.1)]
-    labels = [(100.0, 80.0, 40.0), (200.0, 60.0, 50.0), (150.0, 150.0, 200.0), (60.0, 190.0, 214.0), (9.0, 9.0, 207.0)]
-    assert fit_registration(labels, located).radius_scale == pytest.approx(64.0 / 200.0)  # the capped three's median
+    below it) and three labelled at twice their contact: the ratio comes from the three within reach."""
+    located = [(100, 80, 20), (200, 60, 25), (150, 150, 64), (60, 190, 64.2), (9, 9, 64.1), (30, 40, 22)]
+    labels = [(100, 80, 40), (200, 60, 50), (150, 150, 200), (60, 190, 214), (9, 9, 207), (30, 40, 44)]
+    assert fit_registration(labels, located).radius_scale == pytest.approx(math.sqrt(0.5 * 64 / 200))  # six's median
     reg = fit_registration(labels, located, reach_px=64.5)
     assert reg.radius_taken and reg.radius_scale == pytest.approx(0.5)
+    assert reg.describe().endswith("radius ×0.50 (of 3 within reach)")
+    # a label far beyond reach (×0.1 of it) is left out, not refused
+    far = labels[:2] + [(150, 150, 700)] + labels[3:]
+    assert fit_registration(far, located, reach_px=64.5).radius_scale == pytest.approx(0.5)
+    # two within reach check one press against one: not taken
+    assert not fit_registration(labels[:5], located[:5], reach_px=64.5).radius_taken
+
+
+def test_a_centre_offset_is_taken_only_from_presses_spread_over_the_field():
+    located = [(100.0, 80.0, 20.0), (200.0, 60.0, 25.0), (150.0, 150.0, 22.0)]
+    labels = [(x - 3.0, y + 2.0, r) for x, y, r in located]
+    assert fit_registration(labels, located).centre_taken
+    crowded = fit_registration(labels, located, spread=False)
+    assert not crowded.centre_taken and crowded.place(1.0, 2.0, 3.0) == (1.0, 2.0, 3.0)
+    assert not fit_registration(labels[:2], located[:2]).centre_taken  # two presses: one against one
+
+
+def test_names_and_the_reach_are_checked_where_they_enter():
+    located, labels = [(1.0, 2.0, 10.0)] * 2, [(1.0, 2.0, 12.0)] * 2
+    with pytest.raises(RegistrationError, match="2 labelled presses but 1 names"):
+        fit_registration(labels, located, ["p0"])
+    for reach in (math.nan, -1.0, math.inf, 0.0):
+        with pytest.raises(RegistrationError, match="reach_px: expected a finite number > 0 px"):
+            fit_registration(labels, located, reach_px=reach)
+    assert fit_registration(np.zeros((0, 3)), np.zeros((0, 3))) == Registration()  # arrays, not only lists
