@@ -8,16 +8,20 @@ uncaught Ctrl-C ends any program, so that a shell script running it stops too (a
 a child that exited normally, even with status 130); so does a Ctrl-C after the command has finished,
 while the interpreter shuts down. Not covered: Python's own start-up before the
 entry point's first line, and a Ctrl-C inside a library's import, which can leave it half imported
-and come out as that library's error in one line (docs/safety.md).
+and come out as that library's error in one line (docs/safety.md); torch's import, where a Ctrl-C
+aborted the process (pybind11's std::terminate, SIGABRT) or left torch half imported, takes it only
+once torch is in (``ctrl_c_after``).
 """
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import importlib
 import os
 import signal
 import sys
+import threading
 
 
 def _die(message: str) -> None:
@@ -26,6 +30,26 @@ def _die(message: str) -> None:
     signal.signal(signal.SIGINT, signal.SIG_DFL)
     os.kill(os.getpid(), signal.SIGINT)
     raise SystemExit(130)  # where SIGINT cannot end the process (a blocked mask)
+
+
+@contextlib.contextmanager
+def ctrl_c_after():
+    """A Ctrl-C inside the block is taken when the block has ended: KeyboardInterrupt raised here, after
+    it, never inside it (where it met C++ code that cannot pass it on). Only where Python's own Ctrl-C
+    handler is in place, on the main thread; elsewhere the block runs as it is."""
+    if threading.current_thread() is not threading.main_thread() or (
+        signal.getsignal(signal.SIGINT) is not signal.default_int_handler
+    ):
+        yield
+        return
+    said: list[int] = []
+    signal.signal(signal.SIGINT, lambda signum, frame: said.append(signum))
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+    if said:
+        raise KeyboardInterrupt
 
 
 def _run(module: str, name: str) -> None:

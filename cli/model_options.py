@@ -33,7 +33,11 @@ def one_line_errors(fn):
 
     @functools.wraps(fn)
     def wrapper(*args, **kwargs):
+        from cli.entry import ctrl_c_after
         from cli.one_line import passes_through, unexpected
+
+        with ctrl_c_after():  # torch's import (below) is where a Ctrl-C aborted the process
+            import torch  # noqa: F401
         from common.errors import ToolError
         from model.denoiser.checkpoint import CheckpointError
         from model.training.train_job import end_failed_process

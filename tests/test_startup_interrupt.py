@@ -107,3 +107,32 @@ def test_a_ctrl_c_after_the_command_finished_ends_it_at_once_without_a_traceback
             proc.wait()
     assert proc.returncode == -signal.SIGINT, (proc.returncode, err)
     assert "Traceback" not in err and "Exception ignored" not in err, err
+
+
+def test_a_ctrl_c_inside_a_held_block_is_raised_after_it_and_only_where_python_handles_ctrl_c():
+    """``ctrl_c_after``: the block runs to its end (torch's import, where a Ctrl-C aborted the process),
+    then KeyboardInterrupt; Python's handler is back; with SIGINT ignored the block runs as it is."""
+    script = (
+        "import signal, sys\n"
+        "from cli.entry import ctrl_c_after\n"
+        "if sys.argv[1] == 'ignored':\n"
+        "    signal.signal(signal.SIGINT, signal.SIG_IGN)\n"
+        "try:\n"
+        "    with ctrl_c_after():\n"
+        "        signal.raise_signal(signal.SIGINT)\n"
+        "        sum(range(100000))  # bytecode on: a Ctrl-C not held would be raised here\n"
+        "        print('block ended', flush=True)\n"
+        "    print('nothing raised')\n"
+        "except KeyboardInterrupt:\n"
+        "    print('raised after it')\n"
+        "print(signal.getsignal(signal.SIGINT) in (signal.default_int_handler, signal.SIG_IGN))\n"
+    )
+    root = Path(__file__).resolve().parents[1]
+    for mode, said in (
+        ("python", "block ended\nraised after it\nTrue\n"),
+        ("ignored", "block ended\nnothing raised\nTrue\n"),
+    ):
+        done = subprocess.run(
+            [sys.executable, "-c", script, mode], capture_output=True, text=True, cwd=root, timeout=60
+        )
+        assert (done.returncode, done.stdout) == (0, said), done.stderr
