@@ -24,7 +24,8 @@ import sys
 import threading
 
 
-def _die(message: str) -> None:
+def die_by_sigint(message: str) -> None:
+    """Say ``message`` and end the process by SIGINT, as an uncaught Ctrl-C ends any program."""
     sys.stderr.write(message + "\n")
     sys.stderr.flush()
     signal.signal(signal.SIGINT, signal.SIG_DFL)
@@ -56,7 +57,7 @@ def _run(module: str, name: str) -> None:
     try:
         getattr(importlib.import_module(module), name)()
     except KeyboardInterrupt:
-        _die("interrupted (Ctrl-C)")
+        die_by_sigint("interrupted (Ctrl-C)")
     finally:
         if signal.getsignal(signal.SIGINT) is not signal.SIG_IGN:
             # The command is done. A Ctrl-C while the interpreter shuts down (joining threads, exit

@@ -136,3 +136,21 @@ def test_a_ctrl_c_inside_a_held_block_is_raised_after_it_and_only_where_python_h
             [sys.executable, "-c", script, mode], capture_output=True, text=True, cwd=root, timeout=60
         )
         assert (done.returncode, done.stdout) == (0, said), done.stderr
+
+
+def test_a_ctrl_c_while_the_cli_package_starts_is_its_one_line_and_sigint():
+    """cli/__init__.py runs before cli/entry.py's first line: a Ctrl-C there (here raised by the BLAS set-up
+    it calls) ends the process the same way, one line and SIGINT, not a traceback through the package."""
+    script = (
+        "import sys, types\n"
+        "blas = types.ModuleType('common.blas_threads')\n"
+        "def ctrl_c():\n"
+        "    raise KeyboardInterrupt\n"
+        "blas.one_blas_thread = ctrl_c\n"
+        "sys.modules['common.blas_threads'] = blas\n"
+        "import cli\n"
+        "print('went on')\n"
+    )
+    root = Path(__file__).resolve().parents[1]
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, cwd=root, timeout=60)
+    assert (done.returncode, done.stdout, done.stderr) == (-signal.SIGINT, "", "interrupted (Ctrl-C)\n")
