@@ -60,4 +60,8 @@ if ! command -v chromium >/dev/null 2>&1; then
         echo "note: chromium and chromium-driver are not installed: the web console's browser tests will skip" >&2
     fi
 fi
+# The project's own modules compiled once: where Python may not write bytecode as it imports
+# (PYTHONDONTWRITEBYTECODE, as on CI's machines) every command would compile them again at each start
+# (rig's imports 0.6-0.7 s -> 0.46 s). Quick, and nothing when they are up to date.
+.venv/bin/python -m compileall -q -j 0 acquisition cli common dataset model objects protocols rig sensor_sim >/dev/null
 step "ready in $((SECONDS - start)) s: .venv/bin/rig, dataset, train, generate, evaluate, compare"
