@@ -6,11 +6,11 @@ Once a command runs, its own handling applies (``friendly`` in cli/dataset_app.p
 session of a moving `rig` command, training's checkpoint). The process then ends by SIGINT, as an
 uncaught Ctrl-C ends any program, so that a shell script running it stops too (a shell goes on after
 a child that exited normally, even with status 130); so does a Ctrl-C after the command has finished,
-while the interpreter shuts down. Not covered: Python's own start-up before the
-entry point's first line, and a Ctrl-C inside a library's import, which can leave it half imported
-and come out as that library's error in one line (docs/safety.md); torch's import, where a Ctrl-C
-aborted the process (pybind11's std::terminate, SIGABRT) or left torch half imported, takes it only
-once torch is in (``ctrl_c_after``).
+while the interpreter shuts down; and so does one while cli/__init__.py runs, before this file's first
+line. Not covered: Python's own start-up before that, and a Ctrl-C inside a library's import, which
+can leave it half imported and come out as that library's error in one line (docs/safety.md); torch's
+import, where a Ctrl-C aborted the process (pybind11's std::terminate, SIGABRT) or left torch half
+imported, takes it only once torch is in (``ctrl_c_after``).
 """
 
 from __future__ import annotations
