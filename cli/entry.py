@@ -36,21 +36,30 @@ def die_by_sigint(message: str) -> None:
 @contextlib.contextmanager
 def ctrl_c_after():
     """A Ctrl-C inside the block is taken when the block has ended: KeyboardInterrupt raised here, after
-    it, never inside it (where it met C++ code that cannot pass it on). Only where Python's own Ctrl-C
-    handler is in place, on the main thread; elsewhere the block runs as it is."""
+    it (also in place of an error the block raised), never inside it (where it met C++ code that cannot
+    pass it on). A second Ctrl-C while one is held ends the process at once (a hung import stays
+    stoppable). Only where Python's own Ctrl-C handler is in place, on the main thread; elsewhere the
+    block runs as it is. Python's handler is put back unless the block installed its own."""
     if threading.current_thread() is not threading.main_thread() or (
         signal.getsignal(signal.SIGINT) is not signal.default_int_handler
     ):
         yield
         return
     said: list[int] = []
-    signal.signal(signal.SIGINT, lambda signum, frame: said.append(signum))
+
+    def hold(signum, _frame) -> None:
+        if said:
+            die_by_sigint("interrupted (Ctrl-C)")
+        said.append(signum)
+
+    signal.signal(signal.SIGINT, hold)
     try:
         yield
     finally:
-        signal.signal(signal.SIGINT, signal.default_int_handler)
-    if said:
-        raise KeyboardInterrupt
+        if signal.getsignal(signal.SIGINT) is hold:
+            signal.signal(signal.SIGINT, signal.default_int_handler)
+        if said:
+            raise KeyboardInterrupt
 
 
 def _run(module: str, name: str) -> None:

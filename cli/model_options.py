@@ -29,35 +29,45 @@ SamplingPrecision = Annotated[
 
 
 def one_line_errors(fn):
-    """Expected failures (bad files, values, checkpoints, splits) become one red line and exit 1."""
+    """Expected failures (bad files, values, checkpoints, splits) become one red line and exit 1; a
+    Ctrl-C, the entry point's one line and SIGINT (Typer would end it with status 130, silently)."""
 
     @functools.wraps(fn)
     def wrapper(*args, **kwargs):
-        from cli.entry import ctrl_c_after
-        from cli.one_line import passes_through, unexpected
-
-        with ctrl_c_after():  # torch's import (below) is where a Ctrl-C aborted the process
-            import torch  # noqa: F401
-        from common.errors import ToolError
-        from model.denoiser.checkpoint import CheckpointError
-        from model.training.train_job import end_failed_process
+        from cli.entry import die_by_sigint
 
         try:
-            return fn(*args, **kwargs)
-        except (ToolError, CheckpointError, ValueError, KeyError, OSError) as exc:
-            message = exc.args[0] if isinstance(exc, KeyError) and exc.args else exc
-        except Exception as exc:  # nothing expected it: still one line, naming its type (cli/one_line.py)
-            if passes_through(exc):
-                raise
-            message = unexpected(exc, "model")
-        except KeyboardInterrupt:  # one of several training processes: ends at once (train_job.end_failed_process)
-            end_failed_process(130)
-            raise
-        typer.secho(f"error: {message}", fg=typer.colors.RED, err=True)
-        end_failed_process(1)
-        raise typer.Exit(1)
+            return _said_in_one_line(fn, *args, **kwargs)
+        except KeyboardInterrupt:
+            from model.training.train_job import end_failed_process
+
+            end_failed_process(130, say="interrupted (Ctrl-C)")  # one of several training processes
+            die_by_sigint("interrupted (Ctrl-C)")
 
     return wrapper
+
+
+def _said_in_one_line(fn, *args, **kwargs):
+    from cli.entry import ctrl_c_after
+    from cli.one_line import passes_through, unexpected
+
+    with ctrl_c_after():  # torch's import (below) is where a Ctrl-C aborted the process
+        import torch  # noqa: F401
+    from common.errors import ToolError
+    from model.denoiser.checkpoint import CheckpointError
+    from model.training.train_job import end_failed_process
+
+    try:
+        return fn(*args, **kwargs)
+    except (ToolError, CheckpointError, ValueError, KeyError, OSError) as exc:
+        message = exc.args[0] if isinstance(exc, KeyError) and exc.args else exc
+    except Exception as exc:  # nothing expected it: still one line, naming its type (cli/one_line.py)
+        if passes_through(exc):
+            raise
+        message = unexpected(exc, "model")
+    typer.secho(f"error: {message}", fg=typer.colors.RED, err=True)
+    end_failed_process(1)  # one of several training processes: ends at once
+    raise typer.Exit(1)
 
 
 def sampler_settings(text: str) -> list[tuple[str, int]]:

@@ -147,7 +147,8 @@ def test_a_run_on_several_processes_ends_its_process_with_what_it_said_and_frees
 
 def test_a_failed_process_of_a_run_on_several_processes_says_one_line_and_ends_at_once():
     """With a process group up, a command's error is its one red line, then ``os._exit(1)`` (nothing freed,
-    as ``end_process``); a Ctrl-C, 130. Without one, the usual ``typer.Exit(1)``."""
+    as ``end_process``); a Ctrl-C, its one line and 130. Without one, the usual ``typer.Exit(1)``, and a
+    Ctrl-C ends the process by SIGINT."""
     script = (
         "import sys\n"
         "import torch.distributed as dist\n"
@@ -176,9 +177,13 @@ def test_a_failed_process_of_a_run_on_several_processes_says_one_line_and_ends_a
     assert (failed.returncode, failed.stdout) == (1, "said, not flushed"), failed.stderr
     assert failed.stderr.strip() == "error: data/split: no such split"
     stopped = run("group", "ctrl-c")
-    assert (stopped.returncode, stopped.stdout) == (130, "said, not flushed"), stopped.stderr
+    assert (stopped.returncode, stopped.stdout, stopped.stderr) == (130, "said, not flushed", "interrupted (Ctrl-C)\n")
     alone = run("alone", "error")
     assert alone.returncode == 0 and alone.stdout.startswith("said, not flushed then Exit") and "freed" in alone.stdout
+    # one process, Ctrl-C: the entry point's one line and SIGINT, as an uncaught Ctrl-C ends a program (Typer
+    # alone would have ended it with status 130 and nothing said)
+    alone_stopped = run("alone", "ctrl-c")
+    assert (alone_stopped.returncode, alone_stopped.stderr) == (-signal.SIGINT, "interrupted (Ctrl-C)\n")
 
 
 def test_the_train_command_ends_a_run_on_several_processes_through_end_process(monkeypatch, tmp_path):

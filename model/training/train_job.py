@@ -137,14 +137,17 @@ def end_process(trained: Trained) -> None:
         _exit_now(0)
 
 
-def end_failed_process(code: int) -> None:
+def end_failed_process(code: int, say: str | None = None) -> None:
     """A process of a run on several processes that failed (an error said, Ctrl-C) ends here the same way,
     ``os._exit(code)``: left to the interpreter, the model and the process group it holds would be freed
-    as above. Returns when no process group is up (one process: the usual way out)."""
+    as above, ``say`` first (a line to stderr). Returns when no process group is up (one process: the usual
+    way out)."""
     import sys
 
     dist = sys.modules.get("torch.distributed")  # never imports torch: a group is up only if it was imported
     if dist is not None and dist.is_available() and dist.is_initialized():
+        if say:
+            sys.stderr.write(say + "\n")
         _exit_now(code)
 
 
