@@ -19,4 +19,4 @@ try:
 except KeyboardInterrupt:  # a Ctrl-C before cli/entry.py's first line: its one line, its end by SIGINT
     from cli.entry import die_by_sigint
 
-    die_by_sigint("interrupted (Ctrl-C)")
+    die_by_sigint()

@@ -23,8 +23,10 @@ import signal
 import sys
 import threading
 
+INTERRUPTED = "interrupted (Ctrl-C)"  # what a command says of a Ctrl-C that nothing else took
 
-def die_by_sigint(message: str) -> None:
+
+def die_by_sigint(message: str = INTERRUPTED) -> None:
     """Say ``message`` and end the process by SIGINT, as an uncaught Ctrl-C ends any program."""
     sys.stderr.write(message + "\n")
     sys.stderr.flush()
@@ -49,7 +51,7 @@ def ctrl_c_after():
 
     def hold(signum, _frame) -> None:
         if said:
-            die_by_sigint("interrupted (Ctrl-C)")
+            die_by_sigint()
         said.append(signum)
 
     signal.signal(signal.SIGINT, hold)
@@ -66,7 +68,7 @@ def _run(module: str, name: str) -> None:
     try:
         getattr(importlib.import_module(module), name)()
     except KeyboardInterrupt:
-        die_by_sigint("interrupted (Ctrl-C)")
+        die_by_sigint()
     finally:
         if signal.getsignal(signal.SIGINT) is not signal.SIG_IGN:
             # The command is done. A Ctrl-C while the interpreter shuts down (joining threads, exit

@@ -34,15 +34,15 @@ def one_line_errors(fn):
 
     @functools.wraps(fn)
     def wrapper(*args, **kwargs):
-        from cli.entry import die_by_sigint
+        from cli.entry import INTERRUPTED, die_by_sigint
 
         try:
             return _said_in_one_line(fn, *args, **kwargs)
         except KeyboardInterrupt:
             from model.training.train_job import end_failed_process
 
-            end_failed_process(130, say="interrupted (Ctrl-C)")  # one of several training processes
-            die_by_sigint("interrupted (Ctrl-C)")
+            end_failed_process(130, say=INTERRUPTED)  # one of several training processes
+            die_by_sigint()
 
     return wrapper
 

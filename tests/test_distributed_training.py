@@ -19,6 +19,7 @@ from realtime_priority import descendants, process_tree
 
 from tests.test_model_core import make_split_dir
 
+ROOT = Path(__file__).resolve().parents[1]
 ACCELERATE = Path(sys.executable).with_name("accelerate")
 ARGS = [
     "--preset",
@@ -39,7 +40,7 @@ ARGS = [
 
 
 def _run(command: list[str], timeout_s: float = 240) -> str:
-    env = {**os.environ, "OMP_NUM_THREADS": "1", "PYTHONPATH": str(Path(__file__).resolve().parents[1])}
+    env = {**os.environ, "OMP_NUM_THREADS": "1", "PYTHONPATH": str(ROOT)}
     env["PYTHONFAULTHANDLER"] = "1"  # a SIGABRT prints every thread's stack: what a hung launch was doing
     proc = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
     try:
@@ -136,8 +137,7 @@ def test_a_run_on_several_processes_ends_its_process_with_what_it_said_and_frees
         "end_process(trained)\n"
         "print(' and returned')\n"
     )
-    root = Path(__file__).resolve().parents[1]
-    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, cwd=root, timeout=60)
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, cwd=ROOT, timeout=60)
     assert done.returncode == 0, done.stderr
     if processes == 1:
         assert done.stdout.startswith("said, not flushed and returned") and "freed" in done.stdout
@@ -167,11 +167,10 @@ def test_a_failed_process_of_a_run_on_several_processes_says_one_line_and_ends_a
         "except BaseException as exc:\n"
         "    print(f' then {type(exc).__name__}')\n"
     )
-    root = Path(__file__).resolve().parents[1]
 
     def run(*args: str) -> subprocess.CompletedProcess:
         command = [sys.executable, "-c", script, *args]
-        return subprocess.run(command, capture_output=True, text=True, cwd=root, timeout=120)
+        return subprocess.run(command, capture_output=True, text=True, cwd=ROOT, timeout=120)
 
     failed = run("group", "error")
     assert (failed.returncode, failed.stdout) == (1, "said, not flushed"), failed.stderr

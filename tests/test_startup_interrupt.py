@@ -19,6 +19,7 @@ from pathlib import Path
 import pytest
 
 BIN = Path(sys.executable).parent
+ROOT = Path(__file__).resolve().parents[1]
 
 
 def before_the_project(said: str) -> bool:
@@ -127,13 +128,12 @@ def test_a_ctrl_c_inside_a_held_block_is_raised_after_it_and_only_where_python_h
         "    print('raised after it')\n"
         "print(signal.getsignal(signal.SIGINT) in (signal.default_int_handler, signal.SIG_IGN))\n"
     )
-    root = Path(__file__).resolve().parents[1]
     for mode, said in (
         ("python", "block ended\nraised after it\nTrue\n"),
         ("ignored", "block ended\nnothing raised\nTrue\n"),
     ):
         done = subprocess.run(
-            [sys.executable, "-c", script, mode], capture_output=True, text=True, cwd=root, timeout=60
+            [sys.executable, "-c", script, mode], capture_output=True, text=True, cwd=ROOT, timeout=60
         )
         assert (done.returncode, done.stdout) == (0, said), done.stderr
 
@@ -151,6 +151,5 @@ def test_a_ctrl_c_while_the_cli_package_starts_is_its_one_line_and_sigint():
         "import cli\n"
         "print('went on')\n"
     )
-    root = Path(__file__).resolve().parents[1]
-    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, cwd=root, timeout=60)
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, cwd=ROOT, timeout=60)
     assert (done.returncode, done.stdout, done.stderr) == (-signal.SIGINT, "", "interrupted (Ctrl-C)\n")
